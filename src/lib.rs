@@ -1,0 +1,12 @@
+//! fitstation: a two-camera capture-and-fit station. Two cameras at right angles see a
+//! shopper in an A-pose; the station segments both silhouettes, finds anthropometric
+//! landmarks, refits a body template with mean value deformation and reports tape-measure
+//! girths. See `ARCHITECTURE.md` for the data flow and the module table.
+//!
+//! Stages, dependencies in one direction:
+//! `camera` (model, calibration files) -> `segment` -> `contour`/`landmarks` -> `deform`
+//! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
+//! wires them together with capture and the screen.
+
+pub mod camera;
+pub mod mesh;

@@ -1,0 +1,23 @@
+//! The `fitstation` command line.
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Print the version.
+    Version,
+}
+
+fn main() -> anyhow::Result<()> {
+    let cli = Cli::parse();
+    match cli.command {
+        Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+    }
+    Ok(())
+}
