@@ -9,4 +9,7 @@
 //! wires them together with capture and the screen.
 
 pub mod camera;
+pub mod eval;
 pub mod mesh;
+pub mod recording;
+pub mod synth;

@@ -12,12 +12,21 @@ struct Cli {
 enum Command {
     /// Print the version.
     Version,
+    /// Render a synthetic two-camera recording with its ground truth beside it.
+    Synth(fitstation::synth::SynthArgs),
+    /// Render a deterministic evaluation set of synthetic subjects.
+    SynthSet(fitstation::synth::SynthSetArgs),
+    /// Score fits of recordings against their ground truth.
+    Eval(fitstation::eval::EvalArgs),
 }
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Synth(args) => fitstation::synth::run(args)?,
+        Command::SynthSet(args) => fitstation::synth::run_set(args)?,
+        Command::Eval(args) => fitstation::eval::run(args)?,
     }
     Ok(())
 }
