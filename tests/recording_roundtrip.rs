@@ -218,14 +218,15 @@ fn corrupt_files_are_reported_not_panicked_on() {
     write(&dir, &calib, &fr, FrameFormat::Mp4);
     let p = dir.join("front.mp4");
     let mut bytes = std::fs::read(&p).unwrap();
-    let mid = bytes.len() / 2;
-    for b in &mut bytes[mid..mid + 200] {
+    // Damage the last frames' media data (just before the index, written last).
+    let moov = bytes.windows(4).rposition(|w| w == b"moov").unwrap();
+    for b in &mut bytes[moov - 300..moov - 100] {
         *b = 0xFF;
     }
     std::fs::write(&p, &bytes).unwrap();
     let mut r = Recording::open(&dir).unwrap();
     let ok = (0..r.len()).filter(|&k| r.frame_pair(k).is_ok()).count();
-    assert!(ok >= 1);
+    assert!(ok >= 3, "only {ok} of {} frames readable", r.len());
     // A PNG folder with one broken file and one missing side frame.
     let dir2 = tmp("corrupt-png");
     write(&dir2, &calib, &fr, FrameFormat::Png);

@@ -458,10 +458,12 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
             let background = Background::render(&scene, &camera);
             let mut with_shadow = Vec::new();
             background.with_shadows(&shadows, &mut with_shadow);
+            let mut film = Film::random(&mut frng);
+            film.auto_expose(&background.empty);
             ViewRenderer {
                 view,
                 camera,
-                film: Film::random(&mut frng),
+                film,
                 background,
                 with_shadow,
                 raster: Rasterizer::new(camera.intrinsics.width, camera.intrinsics.height),
