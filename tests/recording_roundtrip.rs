@@ -248,4 +248,48 @@ fn missing_calibration_is_a_clear_error() {
     std::fs::create_dir_all(&dir).unwrap();
     let e = Recording::open(&dir).err().unwrap().to_string();
     assert!(e.contains("station.yaml"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn mp4_plays_in_opencv_ffmpeg() {
+    let have_cv2 = std::process::Command::new("python3")
+        .args(["-c", "import cv2"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have_cv2 {
+        println!("SKIPPED: python3 with cv2 is not available; MP4 playback in OpenCV not checked");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "cv2 is required when CI is set"
+        );
+        return;
+    }
+    let n = 8;
+    let (calib, fr) = frames(n);
+    let (mp4, png) = (tmp("play-mp4"), tmp("play-png"));
+    write(&mp4, &calib, &fr, FrameFormat::Mp4);
+    write(&png, &calib, &fr, FrameFormat::Png);
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/opencv/synth_mp4_play.py"
+    );
+    for view in ["front", "side"] {
+        let out = std::process::Command::new("python3")
+            .arg(script)
+            .arg(mp4.join(format!("{view}.mp4")))
+            .arg(png.join(view))
+            .arg(n.to_string())
+            .output()
+            .unwrap();
+        println!("{}", String::from_utf8_lossy(&out.stdout));
+        assert!(
+            out.status.success(),
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&mp4);
+    let _ = std::fs::remove_dir_all(&png);
 }
