@@ -29,12 +29,10 @@ fn frames(film: &Film, bg: &Background, n: usize) -> Vec<image::RgbImage> {
     (0..n)
         .map(|k| {
             let mut rad = bg.empty.clone();
-            let mut img = image::RgbImage::new(1, 1);
+            let mut img = image::RgbImage::new(bg.width, bg.height);
             film.develop(
                 &mut rad,
                 &mut scratch,
-                bg.width,
-                bg.height,
                 1.0,
                 &mut SplitMix64::new(k as u64),
                 &mut img,
@@ -64,7 +62,7 @@ fn bench(c: &mut Criterion) {
     g.bench_function("develop_frame", |b| {
         b.iter(|| {
             rad.copy_from_slice(&bg.empty);
-            film.develop(&mut rad, &mut scratch, 1280, 720, 1.0, &mut nrng, &mut img);
+            film.develop(&mut rad, &mut scratch, 1.0, &mut nrng, &mut img);
         })
     });
     g.bench_function("background_ray_cast_once_per_recording", |b| {

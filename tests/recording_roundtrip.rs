@@ -42,17 +42,9 @@ fn frames(n: usize) -> (StationCalibration, Vec<(RgbImage, RgbImage)>) {
                     }
                 }
             }
-            let mut img = RgbImage::new(1, 1);
+            let mut img = RgbImage::new(bg.width, bg.height);
             let mut nrng = SplitMix64::stream(3, k as u64);
-            film.develop(
-                &mut rad,
-                &mut scratch,
-                bg.width,
-                bg.height,
-                1.0,
-                &mut nrng,
-                &mut img,
-            );
+            film.develop(&mut rad, &mut scratch, 1.0, &mut nrng, &mut img);
             pair.push(img);
         }
         let side = pair.pop().unwrap();
@@ -204,9 +196,10 @@ fn truncated_mp4_gives_the_readable_frames() {
     let mut r = Recording::open(&dir).unwrap();
     assert!(!r.warnings().is_empty());
     assert!(r.len() >= 2 && r.len() < n, "{} frames recovered", r.len());
-    for k in 0..r.len() {
+    let recovered = r.len();
+    for (k, (front, _)) in fr.iter().enumerate().take(recovered) {
         let (f, _) = r.frame_pair(k).unwrap();
-        assert!(psnr(&fr[k].0, &f) > 30.0, "recovered frame {k}");
+        assert!(psnr(front, &f) > 30.0, "recovered frame {k}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

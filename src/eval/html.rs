@@ -87,8 +87,8 @@ pub fn overlay_thumbnails(
         let w = img.width();
         for (i, (px, covered)) in img.pixels_mut().zip(r.coverage()).enumerate() {
             if covered {
-                for c in 0..3 {
-                    px.0[c] = (0.55 * px.0[c] as f32 + 0.45 * FITTED_TINT[c]) as u8;
+                for (v, tint) in px.0.iter_mut().zip(FITTED_TINT) {
+                    *v = (0.55 * *v as f32 + 0.45 * tint) as u8;
                 }
             }
             if let Some(m) = &true_mask {

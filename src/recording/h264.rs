@@ -99,7 +99,7 @@ pub struct Mp4VideoWriter {
 impl Mp4VideoWriter {
     /// Creates `path` for `width` x `height` frames (both even) at `fps`.
     pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, VideoError> {
-        if width % 2 != 0 || height % 2 != 0 || width == 0 || height == 0 {
+        if !width.is_multiple_of(2) || !height.is_multiple_of(2) || width == 0 || height == 0 {
             return Err(verr(
                 path,
                 format!("H.264 needs even frame sizes, got {width}x{height}"),

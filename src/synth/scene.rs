@@ -715,7 +715,7 @@ impl Film {
             })
             .collect();
         // Normal quantiles, approximated by sorted Box-Muller draws (deterministic).
-        let mut g = SplitMix64::new(0x6E6F_6973_65);
+        let mut g = SplitMix64::new(0x006E_6F69_7365);
         let mut normal_table: Vec<f32> = (0..1usize << NORMAL_TABLE_BITS)
             .map(|_| g.normal() as f32)
             .collect();
@@ -756,23 +756,22 @@ impl Film {
         }
     }
 
-    /// Develops `radiance` (width x height, modified in place by the optics blur) into
-    /// `out`. `gain` is this frame's exposure factor (flicker), `rng` the noise stream.
+    /// Develops `radiance` (row-major, the size of `out`; modified in place by the optics
+    /// blur) into `out`. `gain` is this frame's exposure factor (flicker), `rng` the
+    /// noise stream. A radiance buffer of another size leaves `out` untouched.
     pub fn develop(
         &self,
         radiance: &mut [[f32; 3]],
         scratch: &mut Vec<[f32; 3]>,
-        width: u32,
-        height: u32,
         gain: f32,
         rng: &mut SplitMix64,
         out: &mut image::RgbImage,
     ) {
-        let (w, h) = (width as usize, height as usize);
-        blur121(radiance, scratch, w, h);
-        if out.width() != width || out.height() != height {
-            *out = image::RgbImage::new(width, height);
+        let (w, h) = (out.width() as usize, out.height() as usize);
+        if radiance.len() != w * h || w == 0 {
+            return;
         }
+        blur121(radiance, scratch, w, h);
         let (cx, cy) = (0.5 * (w as f32 - 1.0), 0.5 * (h as f32 - 1.0));
         let r2max = cx * cx + cy * cy;
         let lut_scale = (GAMMA_LUT_SIZE - 1) as f32 / GAMMA_LUT_MAX;
@@ -847,36 +846,41 @@ fn blur121(img: &mut [[f32; 3]], tmp: &mut Vec<[f32; 3]>, w: usize, h: usize) {
     }
 }
 
-/// Renders the body into `radiance` over the background already there. `posed` are the
-/// station positions this frame, `canonical` the undressed body frame positions (same
-/// order), `normals` the posed unit normals.
+/// The body as drawn in one frame: station positions this frame, the undressed
+/// canonical positions (same order, for materials), posed unit normals, triangles.
+#[derive(Debug, Clone, Copy)]
+pub struct BodyFrame<'a> {
+    pub posed: &'a [DVec3],
+    pub canonical: &'a [DVec3],
+    pub normals: &'a [DVec3],
+    pub triangles: &'a [[u32; 3]],
+}
+
+/// Renders the body into `radiance` over the background already there.
 pub fn draw_body(
     scene: &Scene,
     dress: &Dress,
     camera: &Camera,
     raster: &mut Rasterizer,
-    posed: &[DVec3],
-    canonical: &[DVec3],
-    normals: &[DVec3],
-    triangles: &[[u32; 3]],
+    body: &BodyFrame<'_>,
     radiance: &mut [[f32; 3]],
 ) {
     raster.clear();
-    raster.draw_mesh(camera, posed, triangles);
+    raster.draw_mesh(camera, body.posed, body.triangles);
     for (i, px) in radiance.iter_mut().enumerate() {
         let Some(hit) = raster.hit_index(i) else {
             continue;
         };
-        let Some(t) = triangles.get(hit.triangle as usize) else {
+        let Some(t) = body.triangles.get(hit.triangle as usize) else {
             continue;
         };
         let b = hit.bary.map(|v| v as f64);
         let interp = |arr: &[DVec3]| {
             arr[t[0] as usize] * b[0] + arr[t[1] as usize] * b[1] + arr[t[2] as usize] * b[2]
         };
-        let p = interp(posed);
-        let c = interp(canonical);
-        let n = interp(normals).normalize_or_zero();
+        let p = interp(body.posed);
+        let c = interp(body.canonical);
+        let n = interp(body.normals).normalize_or_zero();
         *px = shade_body(scene, dress, c, p, n);
     }
 }
