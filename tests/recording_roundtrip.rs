@@ -286,3 +286,25 @@ fn mp4_plays_in_opencv_ffmpeg() {
     let _ = std::fs::remove_dir_all(&mp4);
     let _ = std::fs::remove_dir_all(&png);
 }
+
+#[test]
+fn mp4_random_access_gives_the_same_frames() {
+    let n = 36; // more than one IDR period
+    let (calib, fr) = frames(n);
+    let dir = tmp("seek");
+    write(&dir, &calib, &fr, FrameFormat::Mp4);
+    let mut r = Recording::open(&dir).unwrap();
+    let mut sequential = Vec::new();
+    for k in 0..n {
+        sequential.push(r.frame_pair(k).unwrap().0);
+    }
+    let mut r = Recording::open(&dir).unwrap();
+    for k in [33, 2, 31, 30, 35, 0, 17] {
+        let (f, _) = r.frame_pair(k).unwrap();
+        assert!(
+            f == sequential[k],
+            "frame {k} differs when reached by seeking"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -62,8 +62,10 @@ pub const FRAME_LONG: u32 = 1280;
 pub const FRAME_SHORT: u32 = 720;
 /// Fraction of the image the body's box may fill at most (the rest is margin).
 pub const MAX_FILL: f64 = 0.94;
-/// Sway amplitude (degrees about the ankles) and period range (seconds).
-pub const SWAY_DEG: (f64, f64) = (0.1, 0.6);
+/// Sway amplitude (degrees about the ankles; 0.4 degrees moves the head by ~1.2 cm, as
+/// a person standing still does) and period range (seconds). `mesh.obj` is the mean
+/// pose; each frame's sway angles are in truth.json.
+pub const SWAY_DEG: (f64, f64) = (0.1, 0.4);
 pub const SWAY_PERIOD_S: (f64, f64) = (2.0, 5.0);
 /// Minimum number of empty frames at the start (formats.md).
 pub const MIN_EMPTY_FRAMES: usize = 10;
