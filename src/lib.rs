@@ -10,3 +10,4 @@
 
 pub mod camera;
 pub mod mesh;
+pub mod pipeline;
