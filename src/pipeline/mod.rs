@@ -9,6 +9,7 @@
 //! wins, dropped frames counted) -> `process` (the caller's [`FrameProcessor`]) ->
 //! [`LatestSlot`] of snapshots read by the screen or the replay loop.
 
+pub mod smooth;
 pub mod timing;
 
 use crate::camera::StationCalibration;
