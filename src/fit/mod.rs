@@ -165,6 +165,11 @@ impl Fitter {
         self.subject.is_some()
     }
 
+    /// Triangles of the template (and so of every avatar).
+    pub fn template_triangles(&self) -> &[[u32; 3]] {
+        &self.library.template().mesh.triangles
+    }
+
     /// The template's part labels (#V).
     pub fn labels(&self) -> &[Part] {
         &self.template_labels
