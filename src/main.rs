@@ -2,7 +2,11 @@
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
+#[command(
+    name = "fitstation",
+    version,
+    about = "Two-camera capture-and-fit body measurement station"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -12,12 +16,15 @@ struct Cli {
 enum Command {
     /// Print the version.
     Version,
+    /// Body templates and the shape library (import, prepare, bodies).
+    Templates(fitstation::body::TemplatesArgs),
 }
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Templates(args) => fitstation::body::run(args)?,
     }
     Ok(())
 }
