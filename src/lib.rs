@@ -8,6 +8,7 @@
 //! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
 //! wires them together with capture and the screen.
 
+pub mod body;
 pub mod camera;
 pub mod mesh;
 pub mod pipeline;

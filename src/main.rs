@@ -12,12 +12,15 @@ struct Cli {
 enum Command {
     /// Print the version.
     Version,
+    /// Body templates and the shape library (import, prepare, bodies).
+    Templates(fitstation::body::TemplatesArgs),
 }
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Templates(args) => fitstation::body::run(args)?,
     }
     Ok(())
 }
