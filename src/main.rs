@@ -12,12 +12,15 @@ struct Cli {
 enum Command {
     /// Print the version.
     Version,
+    /// Measure a body mesh: stature and tape girths (ISO 8559-1).
+    Measure(fitstation::measure::MeasureArgs),
 }
 
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Measure(args) => fitstation::measure::run(args)?,
     }
     Ok(())
 }
