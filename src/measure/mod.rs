@@ -24,7 +24,9 @@
 //!   crotch and [`ARMPIT_SEARCH_TOP_OF_STATURE`] of the stature, below the ears) at which
 //!   both arms are loops separate from the torso; above it an arm joins the torso. Taking
 //!   the highest run makes a forearm or hand that touches the hip lower down harmless.
-//!   The torso's x-extent just below it gives the armpit x positions.
+//!   Found by scanning down from the search top in [`COARSE_STEP_M`] steps (the top
+//!   itself must not have separate arms), then bisected to [`LEVEL_TOLERANCE_M`]. The
+//!   torso's x-extent just below it gives the armpit x positions.
 //! - `span` = armpit - crotch: the other levels are fractions of it, so they scale with
 //!   the trunk rather than with the legs.
 //!
@@ -56,7 +58,8 @@
 //!   armpit (at the middles of equal steps).
 //!
 //! Chest, waist and hip levels are first picked on the profile, then refined by
-//! sampling every [`REFINE_STEP_M`] within one profile step around the pick.
+//! golden-section search within one profile step around the pick, to
+//! [`REFINE_TOLERANCE_M`].
 //!
 //! # Speed
 //! A [`Measurer`] keeps a height index of the triangles and all section buffers between
@@ -67,6 +70,7 @@ pub mod cli;
 pub mod slicer;
 
 use crate::mesh::TriMesh;
+use glam::DVec3;
 use serde::{Deserialize, Serialize};
 use slicer::{HullStats, LevelIndex, SectionScratch};
 
@@ -80,7 +84,7 @@ pub const CROTCH_SEARCH_BOTTOM_OF_STATURE: f64 = 0.3;
 /// 0.82, the ears at about 0.93: ear loops must not pass for arms).
 pub const ARMPIT_SEARCH_TOP_OF_STATURE: f64 = 0.85;
 /// Step of the coarse level searches, metres.
-pub const COARSE_STEP_M: f64 = 0.01;
+pub const COARSE_STEP_M: f64 = 0.02;
 /// Bisection tolerance of the crotch and armpit levels, metres.
 pub const LEVEL_TOLERANCE_M: f64 = 1e-4;
 /// How far below the armpit level the torso loop is read for the armpit x positions.
@@ -97,8 +101,8 @@ pub const WAIST_BAND_OF_SPAN: (f64, f64) = (0.45, 0.8);
 pub const THIGH_DROP_OF_STATURE: f64 = 0.03;
 /// Torso profile spacing, metres (the exact step divides the span evenly).
 pub const PROFILE_STEP_M: f64 = 0.01;
-/// Spacing of the local refinement around a picked level, metres.
-pub const REFINE_STEP_M: f64 = 0.001;
+/// Bracket width at which the local refinement around a picked level stops, metres.
+pub const REFINE_TOLERANCE_M: f64 = 0.5e-3;
 
 const MM_PER_M: f64 = 1000.0;
 
@@ -211,9 +215,7 @@ pub enum LoopSelector {
 /// Convenience for one-off use: it builds a [`Measurer`] (O(#F)); reuse a `Measurer`
 /// for many levels of the same mesh.
 pub fn girth_at(mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
-    let mut m = Measurer::default();
-    m.load(mesh).ok()?;
-    m.hull_at(mesh, y, selector).map(|h| h.perimeter_m)
+    Measurer::default().girth_at(mesh, y, selector)
 }
 
 /// Measures a standing body (see the module docs).
@@ -258,8 +260,12 @@ pub struct Measurer {
     index: LevelIndex,
     section: SectionScratch,
     profile: Vec<Sample>,
+    /// Positions the index was built for (`loaded` once built).
+    loaded_positions: Vec<DVec3>,
+    loaded: bool,
     y_min: f64,
     y_max: f64,
+    x_mid: f64,
 }
 
 impl Measurer {
@@ -267,8 +273,16 @@ impl Measurer {
         Self::default()
     }
 
-    /// Checks the mesh and rebuilds the height index for it.
+    /// Checks the mesh and rebuilds the height index for it, unless it is the mesh the
+    /// index was last built for (same triangles and bit-identical positions).
     fn load(&mut self, mesh: &TriMesh) -> Result<(), MeasureError> {
+        if self.loaded
+            && self.loaded_positions == mesh.positions
+            && self.index.topology_matches(&mesh.triangles)
+        {
+            return Ok(());
+        }
+        self.loaded = false;
         if mesh.triangles.is_empty() || mesh.positions.is_empty() {
             return Err(MeasureError::EmptyMesh);
         }
@@ -287,22 +301,26 @@ impl Measurer {
                 "a vertex position is not finite".into(),
             ));
         }
-        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+        // Bounds of the vertices in use (stray unused vertices do not count).
+        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
         for t in &mesh.triangles {
             for &v in t {
-                let y = mesh.positions[v as usize].y;
-                lo = lo.min(y);
-                hi = hi.max(y);
+                let p = mesh.positions[v as usize];
+                lo = lo.min(p);
+                hi = hi.max(p);
             }
         }
-        self.y_min = lo;
-        self.y_max = hi;
-        self.index.rebuild(mesh, lo, hi);
+        self.y_min = lo.y;
+        self.y_max = hi.y;
+        self.x_mid = 0.5 * (lo.x + hi.x);
+        self.index.rebuild(mesh, lo.y, hi.y);
+        self.loaded_positions.clone_from(&mesh.positions);
+        self.loaded = true;
         Ok(())
     }
 
     fn cut(&mut self, mesh: &TriMesh, y: f64) {
-        self.section.cut(mesh, self.index.candidates(y), y);
+        self.section.cut(mesh, &self.index, y);
     }
 
     /// Index of the torso loop of the last section: the largest (by bounding box, a
@@ -359,6 +377,13 @@ impl Measurer {
         }
     }
 
+    /// Tape girth (metres) at height `y` around the loop(s) chosen by `selector`, as
+    /// [`girth_at`]; the height index is rebuilt only when the mesh changed.
+    pub fn girth_at(&mut self, mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
+        self.load(mesh).ok()?;
+        self.hull_at(mesh, y, selector).map(|h| h.perimeter_m)
+    }
+
     /// Cuts at `y` and returns the hull of the selected loop.
     fn hull_at(&mut self, mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<HullStats> {
         self.cut(mesh, y);
@@ -386,8 +411,9 @@ impl Measurer {
         (lo, hi)
     }
 
-    /// Samples `selector` every [`REFINE_STEP_M`] in [max(lo, y0 - step), min(hi, y0 +
-    /// step)] and returns the best sample by `objective` (`start` if none is better).
+    /// Golden-section search of `objective` over [max(band.0, y0 - step),
+    /// min(band.1, y0 + step)] around the profile pick `start`, to [`REFINE_TOLERANCE_M`];
+    /// returns the best level seen (`start` if none is better).
     fn refine(
         &mut self,
         mesh: &TriMesh,
@@ -397,16 +423,43 @@ impl Measurer {
         selector: &dyn Fn(f64) -> LoopSelector,
         objective: Objective,
     ) -> Sample {
-        let a = band.0.max(start.y - step);
-        let b = band.1.min(start.y + step);
-        let n = ((b - a) / REFINE_STEP_M).ceil().max(1.0) as usize;
+        let inv_phi = 0.5 * (5f64.sqrt() - 1.0);
         let mut best = start;
-        for k in 0..=n {
-            let y = a + (b - a) * k as f64 / n as f64;
-            if let Some(h) = self.hull_at(mesh, y, selector(y)) {
-                if objective.key(&h) < objective.key(&best.hull) {
-                    best = Sample { y, hull: h };
+        let eval = |m: &mut Self, y: f64, best: &mut Sample| -> f64 {
+            match m.hull_at(mesh, y, selector(y)) {
+                Some(h) => {
+                    let k = objective.key(&h);
+                    if k < objective.key(&best.hull) {
+                        *best = Sample { y, hull: h };
+                    }
+                    k
                 }
+                None => f64::INFINITY,
+            }
+        };
+        let (mut a, mut b) = (band.0.max(start.y - step), band.1.min(start.y + step));
+        // The optimum may sit on the band's edge (chest just under the armpit): try it.
+        for edge in [band.0, band.1] {
+            if (edge - a).abs() < 1e-12 || (edge - b).abs() < 1e-12 {
+                eval(self, edge, &mut best);
+            }
+        }
+        let mut c = b - inv_phi * (b - a);
+        let mut d = a + inv_phi * (b - a);
+        let (mut fc, mut fd) = (eval(self, c, &mut best), eval(self, d, &mut best));
+        while b - a > REFINE_TOLERANCE_M {
+            if fc < fd {
+                b = d;
+                d = c;
+                fd = fc;
+                c = b - inv_phi * (b - a);
+                fc = eval(self, c, &mut best);
+            } else {
+                a = c;
+                c = d;
+                fc = fd;
+                d = a + inv_phi * (b - a);
+                fd = eval(self, d, &mut best);
             }
         }
         best
@@ -420,15 +473,7 @@ impl Measurer {
         self.load(mesh)?;
         let (y_min, y_max) = (self.y_min, self.y_max);
         let stature = y_max - y_min;
-        let bounds_mid_x = {
-            let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
-            for p in &mesh.positions {
-                lo = lo.min(p.x);
-                hi = hi.max(p.x);
-            }
-            0.5 * (lo + hi)
-        };
-
+        let bounds_mid_x = self.x_mid;
         // Body axis from the abdomen section.
         let probe_y = y_min + TORSO_PROBE_OF_STATURE * stature;
         self.cut(mesh, probe_y);
@@ -473,35 +518,32 @@ impl Measurer {
             }
         }
 
-        // Armpit: top of the highest run of levels where both arms are separate loops.
+        // Armpit: top of the highest run of levels where both arms are separate loops,
+        // found by scanning down from the search top (which must not be in such a run).
         let arms_apart =
             move |m: &Self| m.torso_loop(axis_x).is_some() && m.loops_on_both_sides(axis_x);
         let top = y_min + ARMPIT_SEARCH_TOP_OF_STATURE * stature;
-        let mut bracket: Option<(f64, f64)> = None;
-        let mut previous: Option<(f64, bool)> = None;
-        let mut y = crotch + COARSE_STEP_M;
-        while y <= top {
-            self.cut(mesh, y);
-            let apart = arms_apart(self);
-            if let Some((py, true)) = previous {
-                if !apart {
-                    bracket = Some((py, y));
-                }
-            }
-            previous = Some((y, apart));
-            y += COARSE_STEP_M;
-        }
-        let not_apart = move |m: &Self| !arms_apart(m);
-        // No run of separate arms, or the highest one still open at the search top.
-        let (a, b) = match (bracket, previous) {
-            (Some(br), Some((_, false))) => br,
-            _ => {
-                return Err(MeasureError::NoArmpit {
-                    bottom_m: crotch,
-                    top_m: top,
-                })
-            }
+        let no_armpit = MeasureError::NoArmpit {
+            bottom_m: crotch,
+            top_m: top,
         };
+        self.cut(mesh, top);
+        if arms_apart(self) {
+            return Err(no_armpit);
+        }
+        let mut y = top;
+        let (a, b) = loop {
+            let below = y - COARSE_STEP_M;
+            if below <= crotch {
+                return Err(no_armpit);
+            }
+            self.cut(mesh, below);
+            if arms_apart(self) {
+                break (below, y);
+            }
+            y = below;
+        };
+        let not_apart = move |m: &Self| !arms_apart(m);
         let (_, armpit) = self.bisect(mesh, a, b, not_apart);
         let armpit_torso = self
             .hull_at(

@@ -23,8 +23,11 @@ const ON_PLANE_EPS_M: f64 = 1e-12;
 /// Upper bound on the number of height buckets of a [`LevelIndex`].
 const MAX_BUCKETS: usize = 4096;
 
-/// Triangles bucketed by height: bucket `b` covers `[y0 + b h, y0 + (b+1) h)` and lists
-/// every triangle whose y-range meets it (compressed rows).
+/// Triangles bucketed by height, and which triangle lies across each triangle edge.
+///
+/// Bucket `b` covers `[y0 + b h, y0 + (b+1) h)` and lists every triangle whose y-range
+/// meets it (compressed rows). The edge neighbours depend only on the triangle list, so
+/// they are kept while the topology stays the same (a fitted template every frame).
 #[derive(Debug, Clone, Default)]
 pub struct LevelIndex {
     y0: f64,
@@ -33,7 +36,22 @@ pub struct LevelIndex {
     offsets: Vec<u32>,
     triangles: Vec<u32>,
     counts: Vec<u32>,
+    ranges: Vec<(f64, f64)>,
+    /// First and last bucket of each triangle.
+    spans: Vec<(u32, u32)>,
+    /// The triangle list the neighbours were built for.
+    topology: Vec<[u32; 3]>,
+    /// `neighbours[t][e]`: the triangle across edge e (vertices e, e+1) of t, or
+    /// `NO_NEIGHBOUR` on a boundary. At a non-manifold edge the triangles sharing it
+    /// are linked in a cycle, which still puts them in one loop.
+    neighbours: Vec<[u32; 3]>,
+    /// Triangles around each vertex (compressed rows), to find edge neighbours.
+    vertex_offsets: Vec<u32>,
+    vertex_triangles: Vec<u32>,
 }
+
+/// Marks a boundary edge in [`LevelIndex`]'s neighbour table.
+const NO_NEIGHBOUR: u32 = u32::MAX;
 
 impl LevelIndex {
     /// Rebuilds the index for `mesh` (indices must already be checked in range).
@@ -42,11 +60,16 @@ impl LevelIndex {
     /// height / [`MAX_BUCKETS`]), so a triangle sits in about two buckets and a section
     /// visits about twice the triangles it actually cuts.
     pub fn rebuild(&mut self, mesh: &TriMesh, y_min: f64, y_max: f64) {
+        if self.topology != mesh.triangles {
+            self.rebuild_neighbours(&mesh.triangles);
+        }
         let height = (y_max - y_min).max(f64::MIN_POSITIVE);
+        self.ranges.clear();
         let mut span_sum = 0.0;
         for t in &mesh.triangles {
-            let (lo, hi) = tri_y_range(mesh, t);
-            span_sum += hi - lo;
+            let r = tri_y_range(mesh, t);
+            span_sum += r.1 - r.0;
+            self.ranges.push(r);
         }
         let mean_span = span_sum / mesh.triangles.len().max(1) as f64;
         let bucket_h = mean_span
@@ -56,32 +79,92 @@ impl LevelIndex {
         self.y0 = y_min;
         self.bucket_h = bucket_h;
         self.n_buckets = n_buckets;
-        self.counts.clear();
-        self.counts.resize(n_buckets, 0);
-        for t in &mesh.triangles {
-            let (lo, hi) = tri_y_range(mesh, t);
-            for b in self.bucket(lo)..=self.bucket(hi) {
-                self.counts[b] += 1;
+        let mut counts = std::mem::take(&mut self.counts);
+        counts.clear();
+        counts.resize(n_buckets, 0);
+        let mut spans = std::mem::take(&mut self.spans);
+        spans.clear();
+        for &(lo, hi) in &self.ranges {
+            let (b0, b1) = (self.bucket(lo), self.bucket(hi));
+            spans.push((b0 as u32, b1 as u32));
+            for c in &mut counts[b0..=b1] {
+                *c += 1;
             }
         }
         self.offsets.clear();
         self.offsets.push(0);
         let mut acc = 0u32;
-        for &c in &self.counts {
+        for &c in &counts {
             acc += c;
             self.offsets.push(acc);
         }
         self.triangles.clear();
         self.triangles.resize(acc as usize, 0);
         // Reuse counts as fill cursors.
-        for (c, &o) in self.counts.iter_mut().zip(&self.offsets) {
+        for (c, &o) in counts.iter_mut().zip(&self.offsets) {
             *c = o;
         }
-        for (i, t) in mesh.triangles.iter().enumerate() {
-            let (lo, hi) = tri_y_range(mesh, t);
-            for b in self.bucket(lo)..=self.bucket(hi) {
-                self.triangles[self.counts[b] as usize] = i as u32;
-                self.counts[b] += 1;
+        for (i, &(b0, b1)) in spans.iter().enumerate() {
+            for c in &mut counts[b0 as usize..=b1 as usize] {
+                self.triangles[*c as usize] = i as u32;
+                *c += 1;
+            }
+        }
+        self.spans = spans;
+        self.counts = counts;
+    }
+
+    /// Edge neighbours through vertex -> triangle lists (linear time, no sorting).
+    fn rebuild_neighbours(&mut self, triangles: &[[u32; 3]]) {
+        self.topology.clear();
+        self.topology.extend_from_slice(triangles);
+        self.neighbours.clear();
+        self.neighbours.resize(triangles.len(), [NO_NEIGHBOUR; 3]);
+        let n_vertices = triangles
+            .iter()
+            .flatten()
+            .map(|&v| v as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let (offsets, incident) = (&mut self.vertex_offsets, &mut self.vertex_triangles);
+        offsets.clear();
+        offsets.resize(n_vertices + 1, 0);
+        for &v in triangles.iter().flatten() {
+            offsets[v as usize + 1] += 1;
+        }
+        for i in 0..n_vertices {
+            offsets[i + 1] += offsets[i];
+        }
+        incident.clear();
+        incident.resize(offsets[n_vertices] as usize, 0);
+        let mut cursor = std::mem::take(&mut self.counts);
+        cursor.clear();
+        cursor.extend_from_slice(&offsets[..n_vertices]);
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                incident[cursor[v as usize] as usize] = t as u32;
+                cursor[v as usize] += 1;
+            }
+        }
+        self.counts = cursor;
+        for (t, tri) in triangles.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                let around_a =
+                    &incident[offsets[a as usize] as usize..offsets[a as usize + 1] as usize];
+                // The triangles sharing edge a-b form a cycle in id order: the next
+                // larger id, else the smallest (the only other one on a manifold edge).
+                let (mut next, mut first) = (NO_NEIGHBOUR, NO_NEIGHBOUR);
+                for &u in around_a {
+                    if u as usize == t || !triangles[u as usize].contains(&b) {
+                        continue;
+                    }
+                    first = first.min(u);
+                    if u as usize > t {
+                        next = next.min(u);
+                    }
+                }
+                self.neighbours[t][e] = if next != NO_NEIGHBOUR { next } else { first };
             }
         }
     }
@@ -94,6 +177,16 @@ impl LevelIndex {
         } else {
             (b as usize).min(n - 1)
         }
+    }
+
+    /// Whether the edge neighbours were built for this triangle list.
+    pub fn topology_matches(&self, triangles: &[[u32; 3]]) -> bool {
+        self.topology == triangles
+    }
+
+    /// Number of height buckets and of (bucket, triangle) entries.
+    pub fn size(&self) -> (usize, usize) {
+        (self.n_buckets, self.triangles.len())
     }
 
     /// Triangles that may cross height `y` (a superset of those that do).
@@ -150,8 +243,12 @@ pub struct HullStats {
 pub struct SectionScratch {
     /// Section segments (x, z) endpoints, in triangle order.
     segs: Vec<[DVec2; 2]>,
-    /// (crossed mesh edge key, segment) pairs, sorted to join segments into loops.
-    keys: Vec<(u64, u32)>,
+    /// Triangle of each segment and the two triangle edges it crosses.
+    seg_tri: Vec<(u32, [u8; 2])>,
+    /// Per mesh triangle: the segment it gave in the section numbered `stamp[t]`.
+    seg_of_tri: Vec<u32>,
+    stamp: Vec<u32>,
+    epoch: u32,
     parent: Vec<u32>,
     /// Loop label of each segment, then segments grouped by loop.
     label: Vec<u32>,
@@ -172,17 +269,33 @@ fn find(parent: &mut [u32], mut i: u32) -> u32 {
 }
 
 #[inline]
-fn edge_key(a: u32, b: u32) -> (u64, u32, u32) {
-    let (lo, hi) = if a < b { (a, b) } else { (b, a) };
-    (((lo as u64) << 32) | hi as u64, lo, hi)
+fn ordered(a: u32, b: u32) -> (u32, u32) {
+    if a < b {
+        (a, b)
+    } else {
+        (b, a)
+    }
 }
 
 impl SectionScratch {
-    /// Cuts `mesh` at height `y` through the triangles `candidates` and splits the cut
-    /// into loops (segments that share a crossed mesh edge belong to the same loop).
-    pub fn cut(&mut self, mesh: &TriMesh, candidates: &[u32], y: f64) {
+    /// Cuts `mesh` at height `y` through the candidate triangles of `index` (built
+    /// for this mesh) and splits the cut into loops: segments of triangles that share
+    /// a crossed edge belong to the same loop.
+    pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
         self.segs.clear();
-        self.keys.clear();
+        self.seg_tri.clear();
+        if self.stamp.len() != mesh.triangles.len() {
+            self.stamp.clear();
+            self.stamp.resize(mesh.triangles.len(), 0);
+            self.seg_of_tri.clear();
+            self.seg_of_tri.resize(mesh.triangles.len(), 0);
+            self.epoch = 0;
+        }
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.epoch = 1;
+        }
         let dist = |v: u32| {
             let d = mesh.positions[v as usize].y - y;
             if d.abs() < ON_PLANE_EPS_M {
@@ -191,18 +304,18 @@ impl SectionScratch {
                 d
             }
         };
-        for &ti in candidates {
+        for &ti in index.candidates(y) {
             let t = mesh.triangles[ti as usize];
             let d = t.map(dist);
             let mut ends = [DVec2::ZERO; 2];
-            let mut keys = [0u64; 2];
+            let mut edges = [0u8; 2];
             let mut k = 0;
             for e in 0..3 {
                 let (a, b) = (e, (e + 1) % 3);
                 if (d[a] > 0.0) != (d[b] > 0.0) && k < 2 {
                     // Interpolate from the lower-indexed vertex so both triangles that
                     // share the edge compute the bit-identical point.
-                    let (key, lo, hi) = edge_key(t[a], t[b]);
+                    let (lo, hi) = ordered(t[a], t[b]);
                     let (dl, dh) = if lo == t[a] {
                         (d[a], d[b])
                     } else {
@@ -211,27 +324,37 @@ impl SectionScratch {
                     let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
                     let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
                     ends[k] = DVec2::new(p.x, p.z);
-                    keys[k] = key;
+                    edges[k] = e as u8;
                     k += 1;
                 }
             }
             if k == 2 {
                 let s = self.segs.len() as u32;
                 self.segs.push(ends);
-                self.keys.push((keys[0], s));
-                self.keys.push((keys[1], s));
+                self.seg_tri.push((ti, edges));
+                self.stamp[ti as usize] = self.epoch;
+                self.seg_of_tri[ti as usize] = s;
             }
         }
-        // Union segments sharing a crossed edge.
+        // Union each segment with the segments of the triangles across its edges.
         let n = self.segs.len();
         self.parent.clear();
         self.parent.extend(0..n as u32);
-        self.keys.sort_unstable_by_key(|k| k.0);
-        for w in 0..self.keys.len().saturating_sub(1) {
-            let (ka, sa) = self.keys[w];
-            let (kb, sb) = self.keys[w + 1];
-            if ka == kb {
-                let (ra, rb) = (find(&mut self.parent, sa), find(&mut self.parent, sb));
+        for s in 0..n {
+            let (t, edges) = self.seg_tri[s];
+            for e in edges {
+                let nb = index
+                    .neighbours
+                    .get(t as usize)
+                    .map_or(NO_NEIGHBOUR, |n| n[e as usize]);
+                if nb == NO_NEIGHBOUR || self.stamp[nb as usize] != self.epoch {
+                    continue;
+                }
+                let other = self.seg_of_tri[nb as usize];
+                let (ra, rb) = (
+                    find(&mut self.parent, s as u32),
+                    find(&mut self.parent, other),
+                );
                 if ra != rb {
                     self.parent[ra as usize] = rb;
                 }
@@ -400,7 +523,7 @@ mod tests {
         let b = mesh.bounds().expect("non-empty test mesh");
         idx.rebuild(mesh, b.min.y, b.max.y);
         let mut s = SectionScratch::default();
-        s.cut(mesh, idx.candidates(y), y);
+        s.cut(mesh, &idx, y);
         s
     }
 
