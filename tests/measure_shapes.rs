@@ -420,6 +420,24 @@ fn split_parts(mesh: &TriMesh) -> Vec<TriMesh> {
 }
 
 #[test]
+fn shoulder_tops_beside_the_neck_are_not_armpits() {
+    // Two small caps on the shoulders, separate from the neck: slices through them show
+    // "two loops beside the torso" as arms do, but above them the torso narrows to the
+    // neck instead of taking them in.
+    let mut b = stick_body(true, 0.04);
+    for side in [-1.0, 1.0] {
+        let (m, o) = ellipse_prism(0.05, 0.05, 1.45, 1.48, side * 0.2);
+        add(&mut b.mesh, m, o);
+    }
+    let m = measure(&b.mesh).expect("body with shoulder caps");
+    assert!(
+        (m.levels.armpit_m - b.armpit).abs() < 1e-3,
+        "armpit {}",
+        m.levels.armpit_m
+    );
+}
+
+#[test]
 fn not_a_standing_body_is_a_clear_error() {
     assert_eq!(measure(&TriMesh::default()), Err(MeasureError::EmptyMesh));
     let cyl = shapes::elliptic_cylinder(0.15, 0.1, 1.7, 10, 64);

@@ -22,11 +22,13 @@
 //!   probe in [`COARSE_STEP_M`] steps, then bisected to [`LEVEL_TOLERANCE_M`].
 //! - **Armpit** (`levels.armpit_m`): the top of the highest run of levels (between the
 //!   crotch and [`ARMPIT_SEARCH_TOP_OF_STATURE`] of the stature, below the ears) at which
-//!   both arms are loops separate from the torso; above it an arm joins the torso. Taking
-//!   the highest run makes a forearm or hand that touches the hip lower down harmless.
-//!   Found by scanning down from the search top in [`COARSE_STEP_M`] steps (the top
-//!   itself must not have separate arms), then bisected to [`LEVEL_TOLERANCE_M`]. The
-//!   torso's x-extent just below it gives the armpit x positions.
+//!   both arms are loops separate from the torso, and above which the torso loop reaches
+//!   over where the arms were (they have joined it). Taking the highest run makes a
+//!   forearm or hand that touches the hip lower down harmless; the joining test rejects
+//!   shoulder tops that slice as two caps beside a narrower neck. Found by scanning down
+//!   from the search top in [`COARSE_STEP_M`] steps, then bisected to
+//!   [`LEVEL_TOLERANCE_M`]. The torso's x-extent just below it gives the armpit x
+//!   positions.
 //! - `span` = armpit - crotch: the other levels are fractions of it, so they scale with
 //!   the trunk rather than with the legs.
 //!
@@ -342,6 +344,24 @@ impl Measurer {
         loops.iter().any(|l| l.x_min > axis_x) && loops.iter().any(|l| l.x_max < axis_x)
     }
 
+    /// With a torso loop and loops on both sides of it in the last section: the
+    /// innermost x of the left loops and of the right loops (where the arms begin).
+    fn arm_inner_edges(&self, axis_x: f64) -> Option<(f64, f64)> {
+        self.torso_loop(axis_x)?;
+        let loops = self.section.loops();
+        let left = loops
+            .iter()
+            .filter(|l| l.x_min > axis_x)
+            .map(|l| l.x_min)
+            .fold(f64::INFINITY, f64::min);
+        let right = loops
+            .iter()
+            .filter(|l| l.x_max < axis_x)
+            .map(|l| l.x_max)
+            .fold(f64::NEG_INFINITY, f64::max);
+        (left.is_finite() && right.is_finite()).then_some((left, right))
+    }
+
     fn select(&mut self, selector: LoopSelector) -> Option<HullStats> {
         match selector {
             LoopSelector::Whole => self.section.whole_hull(),
@@ -518,8 +538,11 @@ impl Measurer {
             }
         }
 
-        // Armpit: top of the highest run of levels where both arms are separate loops,
-        // found by scanning down from the search top (which must not be in such a run).
+        // Armpit: scanning down from the search top, the first level where both arms
+        // are loops apart from the torso, just below a level where the torso loop
+        // reaches over where those arms are (they have joined it). Shoulder tops that
+        // slice as separate caps beside the neck fail the second test: above them the
+        // neck is narrower, not wider.
         let arms_apart =
             move |m: &Self| m.torso_loop(axis_x).is_some() && m.loops_on_both_sides(axis_x);
         let top = y_min + ARMPIT_SEARCH_TOP_OF_STATURE * stature;
@@ -527,21 +550,30 @@ impl Measurer {
             bottom_m: crotch,
             top_m: top,
         };
-        self.cut(mesh, top);
-        if arms_apart(self) {
-            return Err(no_armpit);
-        }
+        let mut above: Option<(f64, f64, f64)> = None;
         let mut y = top;
         let (a, b) = loop {
-            let below = y - COARSE_STEP_M;
-            if below <= crotch {
+            if y <= crotch {
                 return Err(no_armpit);
             }
-            self.cut(mesh, below);
-            if arms_apart(self) {
-                break (below, y);
+            self.cut(mesh, y);
+            match self.arm_inner_edges(axis_x) {
+                Some((left_inner, right_inner)) => {
+                    if let Some((y_above, x_min, x_max)) = above {
+                        if x_max >= left_inner && x_min <= right_inner {
+                            break (y, y_above);
+                        }
+                    }
+                    above = None;
+                }
+                None => {
+                    above = self.torso_loop(axis_x).map(|i| {
+                        let l = self.section.loops()[i];
+                        (y, l.x_min, l.x_max)
+                    });
+                }
             }
-            y = below;
+            y -= COARSE_STEP_M;
         };
         let not_apart = move |m: &Self| !arms_apart(m);
         let (_, armpit) = self.bisect(mesh, a, b, not_apart);
