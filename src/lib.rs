@@ -10,5 +10,6 @@
 
 pub mod body;
 pub mod camera;
+pub mod measure;
 pub mod mesh;
 pub mod pipeline;

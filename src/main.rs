@@ -14,6 +14,8 @@ enum Command {
     Version,
     /// Body templates and the shape library (import, prepare, bodies).
     Templates(fitstation::body::TemplatesArgs),
+    /// Measure a body mesh: stature and tape girths (ISO 8559-1).
+    Measure(fitstation::measure::MeasureArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -21,6 +23,7 @@ fn main() -> anyhow::Result<()> {
     match cli.command {
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
         Command::Templates(args) => fitstation::body::run(args)?,
+        Command::Measure(args) => fitstation::measure::run(args)?,
     }
     Ok(())
 }
