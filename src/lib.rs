@@ -10,6 +10,9 @@
 
 pub mod body;
 pub mod camera;
+pub mod eval;
 pub mod measure;
 pub mod mesh;
 pub mod pipeline;
+pub mod recording;
+pub mod synth;

@@ -16,6 +16,12 @@ enum Command {
     Templates(fitstation::body::TemplatesArgs),
     /// Measure a body mesh: stature and tape girths (ISO 8559-1).
     Measure(fitstation::measure::MeasureArgs),
+    /// Render a synthetic two-camera recording with its ground truth beside it.
+    Synth(fitstation::synth::SynthArgs),
+    /// Render a deterministic evaluation set of synthetic subjects.
+    SynthSet(fitstation::synth::SynthSetArgs),
+    /// Score fits of recordings against their ground truth.
+    Eval(fitstation::eval::EvalArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -24,6 +30,9 @@ fn main() -> anyhow::Result<()> {
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
         Command::Templates(args) => fitstation::body::run(args)?,
         Command::Measure(args) => fitstation::measure::run(args)?,
+        Command::Synth(args) => fitstation::synth::run(args)?,
+        Command::SynthSet(args) => fitstation::synth::run_set(args)?,
+        Command::Eval(args) => fitstation::eval::run(args)?,
     }
     Ok(())
 }
