@@ -21,7 +21,7 @@ pub mod parts;
 pub mod pose;
 pub mod shape;
 
-use crate::body::{ShapeLibrary, ShapeParams};
+use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
 use crate::camera::StationCalibration;
 use crate::deform::{DecodeOptions, DecoderKind, MvcDeformer};
 use crate::mesh::TriMesh;
@@ -115,6 +115,8 @@ pub struct Fitter {
     library: Arc<ShapeLibrary>,
     opts: FitOptions,
     template_labels: Vec<Part>,
+    pose_joints: pose::PoseJoints,
+    rigid: Vec<Vec<u32>>,
     library_params: Vec<ShapeParams>,
     library_descriptors: Vec<shape::ShapeDescriptor>,
     subject: Option<SubjectState>,
@@ -139,7 +141,11 @@ impl Fitter {
             library_descriptors.push(shape::mesh_descriptor(&buf, &template_labels));
             library_params.push(p);
         }
+        let pose_joints = pose::PoseJoints::new(template);
+        let rigid = pose::rigid_groups(template);
         Ok(Fitter {
+            pose_joints,
+            rigid,
             library,
             opts,
             template_labels,
@@ -256,7 +262,7 @@ impl Fitter {
         let k = obs.stature_m / stature;
         body.map_positions(|p| DVec3::new(p.x * k + centre.x, p.y * k, p.z * k + centre.z));
         // 4. Pose synchronisation.
-        pose::synchronise(&mut body, &self.template_labels, self.library.template(), k, obs);
+        pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
         // 5. Controls and deformer on the posed candidate.
         let step = body.mean_edge_length();
         let controls = correspond::select_controls(&body, &self.template_labels, step, self.opts.variant, &calib.front, &calib.side);
@@ -264,7 +270,7 @@ impl Fitter {
         let dopts = DecodeOptions::default();
         let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts).map_err(|e| FitError::Deform(e.to_string()))?;
         deformer.set_controls(&indices).map_err(|e| FitError::Deform(e.to_string()))?;
-        let rigid = pose::rigid_groups(&body.positions, &self.template_labels);
+        let rigid = self.rigid.clone();
         self.subject = Some(SubjectState {
             rigid,
             params,
@@ -279,7 +285,7 @@ impl Fitter {
 }
 
 /// Gauss-Newton with a finite-difference Jacobian on the shape descriptor over the macro
-/// parameters (gender, muscle, weight, height, proportions); parameters stay in range.
+/// parameters (gender, muscle, weight, height, proportions, age); they stay in range.
 fn shape_refine(
     library: &ShapeLibrary,
     labels: &[Part],
@@ -296,15 +302,20 @@ fn shape_refine(
         let d = shape::mesh_descriptor(buf, labels).as_vec();
         d.iter().zip(&obs).map(|(a, b)| if a.is_finite() && b.is_finite() { a - b } else { 0.0 }).collect()
     };
-    let get = |p: &ShapeParams, j: usize| [p.gender, p.muscle, p.weight, p.height, p.proportions][j];
+    // Age enters normalised to 0..1 over the library's adult range.
+    let age_span = AGE_MAX_YEARS - AGE_MIN_YEARS;
+    let get = |p: &ShapeParams, j: usize| {
+        [p.gender, p.muscle, p.weight, p.height, p.proportions, (p.age_years - AGE_MIN_YEARS) / age_span][j]
+    };
     let set = |p: &mut ShapeParams, j: usize, v: f64| match j {
         0 => p.gender = v.clamp(0.0, 1.0),
         1 => p.muscle = v.clamp(0.0, 1.0),
         2 => p.weight = v.clamp(0.0, 1.0),
         3 => p.height = v.clamp(0.0, 1.0),
-        _ => p.proportions = v.clamp(0.0, 1.0),
+        4 => p.proportions = v.clamp(0.0, 1.0),
+        _ => p.age_years = AGE_MIN_YEARS + v.clamp(0.0, 1.0) * age_span,
     };
-    const NP: usize = 5;
+    const NP: usize = 6;
     let mut p = start;
     let mut r = residual(&p, &mut buf);
     let cost = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>();

@@ -20,141 +20,65 @@ use crate::body::Template;
 use crate::mesh::TriMesh;
 use glam::{DMat3, DVec2, DVec3};
 
-/// Cell size of the orthographic silhouette used to find template landmarks, metres.
-const ORTHO_CELL_M: f64 = 0.004;
 /// Half-width of the blend zone of the skinning weights across a joint, metres.
 const BLEND_HALF_M: f64 = 0.06;
-/// Stature fraction below which leg vertices belong to the rigid feet.
-const FEET_FRACTION: f64 = 0.045;
-/// Fraction of an arm's length (from the shoulder) beyond which it is the rigid hand.
-const HAND_FRACTION: f64 = 0.78;
+/// Template vertices averaged to carry a joint from the template to a library body.
+const JOINT_ANCHORS: usize = 12;
 
-/// Orthographic front silhouette of a mesh (looking along -Z), one byte per cell.
-struct OrthoMask {
-    x0: f64,
-    y0: f64,
-    w: usize,
-    h: usize,
-    cells: Vec<bool>,
-}
-
-impl OrthoMask {
-    fn new(mesh: &TriMesh) -> Option<Self> {
-        let bb = mesh.bounds()?;
-        let x0 = bb.min.x - 2.0 * ORTHO_CELL_M;
-        let y0 = bb.min.y - 2.0 * ORTHO_CELL_M;
-        let w = ((bb.size().x / ORTHO_CELL_M) as usize) + 5;
-        let h = ((bb.size().y / ORTHO_CELL_M) as usize) + 5;
-        if w * h > 50_000_000 {
-            return None;
-        }
-        let mut cells = vec![false; w * h];
-        let to = |p: DVec3| DVec2::new((p.x - x0) / ORTHO_CELL_M, (p.y - y0) / ORTHO_CELL_M);
-        for t in &mesh.triangles {
-            let [a, b, c] = t.map(|i| to(mesh.positions[i as usize]));
-            let area = (b - a).perp_dot(c - a);
-            if area.abs() < 1e-12 {
-                continue;
-            }
-            let minx = a.x.min(b.x).min(c.x).floor().max(0.0) as usize;
-            let maxx = (a.x.max(b.x).max(c.x).ceil() as usize).min(w - 1);
-            let miny = a.y.min(b.y).min(c.y).floor().max(0.0) as usize;
-            let maxy = (a.y.max(b.y).max(c.y).ceil() as usize).min(h - 1);
-            for y in miny..=maxy {
-                for x in minx..=maxx {
-                    let q = DVec2::new(x as f64 + 0.5, y as f64 + 0.5);
-                    let w0 = (b - q).perp_dot(c - q) / area;
-                    let w1 = (c - q).perp_dot(a - q) / area;
-                    if w0 >= 0.0 && w1 >= 0.0 && w0 + w1 <= 1.0 {
-                        cells[y * w + x] = true;
-                    }
-                }
-            }
-        }
-        Some(OrthoMask { x0, y0, w, h, cells })
-    }
-    fn at(&self, x: usize, y: usize) -> bool {
-        x < self.w && y < self.h && self.cells[y * self.w + x]
-    }
-    fn col(&self, x_m: f64) -> usize {
-        (((x_m - self.x0) / ORTHO_CELL_M).max(0.0) as usize).min(self.w - 1)
-    }
-    fn row(&self, y_m: f64) -> usize {
-        (((y_m - self.y0) / ORTHO_CELL_M).max(0.0) as usize).min(self.h - 1)
-    }
-    fn y_of(&self, row: usize) -> f64 {
-        self.y0 + (row as f64 + 0.5) * ORTHO_CELL_M
-    }
-    fn x_of(&self, col: usize) -> f64 {
-        self.x0 + (col as f64 + 0.5) * ORTHO_CELL_M
-    }
-}
-
-/// Crotch, armpits and neck height of a body mesh standing in an A-pose.
-pub fn part_landmarks(mesh: &TriMesh) -> Result<PartLandmarks, String> {
-    let bb = mesh.bounds().ok_or("empty template")?;
-    let stature = bb.size().y;
-    let h = stature / 7.0;
-    let m = OrthoMask::new(mesh).ok_or("template too large for its silhouette grid")?;
-    let cx = 0.5 * (bb.min.x + bb.max.x);
-    // Crotch: in the zone |x - cx| < 0.1h, the top of the gap that opens to the floor.
-    let mut crotch: Option<(f64, f64)> = None;
-    for col in m.col(cx - 0.1 * h)..=m.col(cx + 0.1 * h) {
-        let mut row = 0;
-        while row < m.h && !m.at(col, row) {
-            row += 1;
-        }
-        // Skip the feet/legs if the column starts inside a leg (legs together at the ankle).
-        if row >= m.h || row == 0 {
-            continue;
-        }
-        let y = m.y_of(row);
-        if y < 0.3 * stature || y > 0.65 * stature {
-            continue;
-        }
-        if crotch.is_none_or(|c| y > c.1) {
-            crotch = Some((m.x_of(col), y));
-        }
-    }
-    let (crotch_x, crotch_y) = crotch.ok_or("no gap between the legs: the template must stand with its legs apart")?;
-    // Armpits: in x in [0.2h, h] from the centre and y in [crotch + 0.5h, crotch + 2.5h],
-    // the highest background cell of a gap that is closed above (not the open air beyond
-    // the arm).
-    let armpit = |sign: f64| -> Option<DVec3> {
-        let (a, b) = (cx + sign * 0.2 * h, cx + sign * h);
-        let (lo, hi) = (m.col(a.min(b)), m.col(a.max(b)));
-        let (r0, r1) = (m.row(crotch_y + 0.5 * h), m.row(crotch_y + 2.5 * h));
-        let mut best: Option<(usize, usize)> = None;
-        for col in lo..=hi {
-            if m.at(col, r0) {
-                continue;
-            }
-            let mut row = r0;
-            while row < r1 && !m.at(col, row) {
-                row += 1;
-            }
-            if row >= r1 {
-                continue; // open to the top of the zone: beside the arm, not under it
-            }
-            if best.is_none_or(|bst| row > bst.1) {
-                best = Some((col, row));
-            }
-        }
-        best.map(|(c, r)| DVec3::new(m.x_of(c), m.y_of(r), 0.0))
-    };
-    let left = armpit(1.0).ok_or("no gap between the left arm and the torso: the template must stand in an A-pose")?;
-    let right = armpit(-1.0).ok_or("no gap between the right arm and the torso: the template must stand in an A-pose")?;
-    Ok(PartLandmarks {
-        crotch: DVec3::new(crotch_x, crotch_y, 0.0),
-        left_armpit: left,
-        right_armpit: right,
-        neck_y: crotch_y + 2.4 * h,
-    })
-}
-
-/// Landmarks of the library's template.
+/// Part landmarks of the library's template, from its sidecar (`fitstation templates
+/// prepare`).
 pub fn template_part_landmarks(t: &Template) -> Result<PartLandmarks, String> {
-    part_landmarks(&t.mesh)
+    let lm = &t.info.landmarks;
+    if !(lm.crotch_y > 0.0 && lm.armpit_y > lm.crotch_y && lm.neck_cut_y > lm.armpit_y) {
+        return Err("the template's sidecar has no usable crotch/armpit/neck landmarks: run `fitstation templates prepare`".into());
+    }
+    Ok(PartLandmarks { crotch: lm.crotch, left_armpit: lm.armpit_left, right_armpit: lm.armpit_right, neck_y: lm.neck_cut_y })
+}
+
+/// A joint carried by the template's vertices: the centroid of its nearest vertices plus
+/// the offset, so it follows the body through shape changes (all library bodies share
+/// the template's vertex order).
+#[derive(Debug, Clone)]
+pub struct JointAnchor {
+    vertices: Vec<u32>,
+    offset: DVec3,
+}
+
+impl JointAnchor {
+    pub fn new(template: &[DVec3], joint: DVec3) -> Self {
+        let mut idx: Vec<u32> = (0..template.len() as u32).collect();
+        idx.sort_by(|&a, &b| (template[a as usize] - joint).length_squared().total_cmp(&(template[b as usize] - joint).length_squared()));
+        idx.truncate(JOINT_ANCHORS);
+        let c = idx.iter().map(|&i| template[i as usize]).sum::<DVec3>() / idx.len().max(1) as f64;
+        JointAnchor { vertices: idx, offset: joint - c }
+    }
+    /// The joint on a body with the template's vertex order, scaled by `scale`.
+    pub fn on(&self, positions: &[DVec3], scale: f64) -> DVec3 {
+        let c = self.vertices.iter().map(|&i| positions[i as usize]).sum::<DVec3>() / self.vertices.len().max(1) as f64;
+        c + self.offset * scale
+    }
+}
+
+/// Shoulder and hip joints of the template, carried to any library body.
+#[derive(Debug, Clone)]
+pub struct PoseJoints {
+    pub shoulder_left: JointAnchor,
+    pub shoulder_right: JointAnchor,
+    pub hip_left: JointAnchor,
+    pub hip_right: JointAnchor,
+}
+
+impl PoseJoints {
+    pub fn new(t: &Template) -> Self {
+        let j = &t.info.joints;
+        let p = &t.mesh.positions;
+        PoseJoints {
+            shoulder_left: JointAnchor::new(p, j.shoulder_left),
+            shoulder_right: JointAnchor::new(p, j.shoulder_right),
+            hip_left: JointAnchor::new(p, j.thigh_root_left),
+            hip_right: JointAnchor::new(p, j.thigh_root_right),
+        }
+    }
 }
 
 /// Principal axis (in the XY plane) and centroid of a set of vertices, axis pointing down.
@@ -185,88 +109,63 @@ fn abduction(axis: DVec2, side: f64) -> f64 {
     (axis.x * side).atan2(-axis.y)
 }
 
-/// Rotates arms and legs of `body` (labels from the template) to the observed angles.
-pub fn synchronise(body: &mut TriMesh, labels: &[Part], _template: &Template, _scale: f64, obs: &Observation) {
-    let Ok(lm) = part_landmarks(body) else { return };
+/// Rotates arms and legs of `body` (labels from the template) about the shoulder and
+/// hip joints to the observed abduction angles (linear blend skinning with two bones per
+/// limb: the trunk with the identity, the limb with the rotation; weights blend across
+/// the joint).
+pub fn synchronise(body: &mut TriMesh, labels: &[Part], joints: &PoseJoints, scale: f64, obs: &Observation) {
     let limbs = [
-        (Part::LeftArm, 1.0, obs.arm_angles.map(|a| a.0), lm.left_armpit),
-        (Part::RightArm, -1.0, obs.arm_angles.map(|a| a.1), lm.right_armpit),
-        (Part::LeftLeg, 1.0, obs.leg_angles.map(|a| a.0), lm.crotch),
-        (Part::RightLeg, -1.0, obs.leg_angles.map(|a| a.1), lm.crotch),
+        (Part::LeftArm, 1.0, obs.arm_angles.map(|a| a.0), joints.shoulder_left.on(&body.positions, scale)),
+        (Part::RightArm, -1.0, obs.arm_angles.map(|a| a.1), joints.shoulder_right.on(&body.positions, scale)),
+        (Part::LeftLeg, 1.0, obs.leg_angles.map(|a| a.0), joints.hip_left.on(&body.positions, scale)),
+        (Part::RightLeg, -1.0, obs.leg_angles.map(|a| a.1), joints.hip_right.on(&body.positions, scale)),
     ];
-    for (part, side, target, joint_ref) in limbs {
+    for (part, side, target, joint) in limbs {
         let Some(target) = target else { continue };
-        let Some((c, axis)) = limb_axis(&body.positions, labels, part) else { continue };
+        let Some((_, axis)) = limb_axis(&body.positions, labels, part) else { continue };
         let delta = (target - abduction(axis, side)) * side;
-        if delta.abs() < 1e-3 {
+        if delta.abs() < 1e-3 || delta.abs() > MAX_POSE_CHANGE_RAD {
             continue;
         }
-        // Pivot: where the limb's axis reaches the joint's height (shoulder: a little
-        // above the armpit; hip: the crotch height).
-        let is_arm = matches!(part, Part::LeftArm | Part::RightArm);
-        let pivot_y = if is_arm { joint_ref.y + 0.06 } else { joint_ref.y };
-        let t = (pivot_y - c.y) / axis.y.min(-1e-6);
-        let pivot = c + axis * t;
+        let pivot = DVec2::new(joint.x, joint.y);
         let rot = DMat3::from_rotation_z(delta);
+        let q = DVec3::new(joint.x, joint.y, 0.0);
         for (p, l) in body.positions.iter_mut().zip(labels) {
-            let along = (DVec2::new(p.x, p.y) - pivot).dot(axis);
+            let rel = DVec2::new(p.x, p.y) - pivot;
             let own = *l == part;
-            let near_joint = *l == Part::Torso && (DVec2::new(p.x, p.y) - pivot).length() < 2.0 * BLEND_HALF_M;
+            let near_joint = *l == Part::Torso && rel.length() < 2.0 * BLEND_HALF_M;
             if !own && !near_joint {
                 continue;
             }
+            let along = rel.dot(axis);
             let w = smoothstep((along + BLEND_HALF_M) / (2.0 * BLEND_HALF_M)) * if own { 1.0 } else { 0.5 };
             if w <= 0.0 {
                 continue;
             }
-            let q = DVec3::new(pivot.x, pivot.y, 0.0);
             let moved = rot * (*p - q) + q;
-            let mz = p.z;
             *p = *p * (1.0 - w) + moved * w;
-            p.z = mz * (1.0 - w) + moved.z * w;
         }
     }
 }
+
+/// Largest arm/leg rotation pose synchronisation applies (beyond it the landmarks are
+/// more likely wrong than the pose that different).
+const MAX_POSE_CHANGE_RAD: f64 = 0.6;
 
 fn smoothstep(x: f64) -> f64 {
     let x = x.clamp(0.0, 1.0);
     x * x * (3.0 - 2.0 * x)
 }
 
-/// Vertex groups moved rigidly: head, hands (far end of each arm), feet (low leg part).
-pub fn rigid_groups(rest: &[DVec3], labels: &[Part]) -> Vec<Vec<u32>> {
-    let miny = rest.iter().map(|p| p.y).fold(f64::MAX, f64::min);
-    let maxy = rest.iter().map(|p| p.y).fold(f64::MIN, f64::max);
-    let stature = maxy - miny;
-    let mut groups = Vec::new();
-    groups.push(labels.iter().enumerate().filter(|(_, l)| **l == Part::Head).map(|(i, _)| i as u32).collect::<Vec<_>>());
-    for arm in [Part::LeftArm, Part::RightArm] {
-        if let Some((c, axis)) = limb_axis(rest, labels, arm) {
-            let along: Vec<(u32, f64)> = rest
-                .iter()
-                .zip(labels)
-                .enumerate()
-                .filter(|(_, (_, l))| **l == arm)
-                .map(|(i, (p, _))| (i as u32, (DVec2::new(p.x, p.y) - c).dot(axis)))
-                .collect();
-            let lo = along.iter().map(|a| a.1).fold(f64::MAX, f64::min);
-            let hi = along.iter().map(|a| a.1).fold(f64::MIN, f64::max);
-            let cut = lo + HAND_FRACTION * (hi - lo);
-            groups.push(along.iter().filter(|a| a.1 > cut).map(|a| a.0).collect());
-        }
-    }
-    for leg in [Part::LeftLeg, Part::RightLeg] {
-        groups.push(
-            rest.iter()
-                .zip(labels)
-                .enumerate()
-                .filter(|(_, (p, l))| **l == leg && p.y < miny + FEET_FRACTION * stature)
-                .map(|(i, _)| i as u32)
-                .collect(),
-        );
-    }
-    groups.retain(|g| g.len() >= 3);
-    groups
+/// Vertex groups moved rigidly (head, hands, feet), from the template's sidecar.
+pub fn rigid_groups(t: &Template) -> Vec<Vec<u32>> {
+    let r = &t.info.rigid;
+    let n = t.mesh.vertex_count() as u32;
+    [&r.head, &r.hand_left, &r.hand_right, &r.foot_left, &r.foot_right]
+        .into_iter()
+        .map(|g| g.iter().copied().filter(|&i| i < n).collect::<Vec<u32>>())
+        .filter(|g| g.len() >= 3)
+        .collect()
 }
 
 /// Replaces each rigid group of `positions` by the best rigid motion of its `rest` shape.
