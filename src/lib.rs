@@ -9,4 +9,5 @@
 //! wires them together with capture and the screen.
 
 pub mod camera;
+pub mod deform;
 pub mod mesh;
