@@ -10,6 +10,7 @@
 
 pub mod body;
 pub mod camera;
+pub mod deform;
 pub mod eval;
 pub mod measure;
 pub mod mesh;

@@ -2,7 +2,11 @@
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
+#[command(
+    name = "fitstation",
+    version,
+    about = "Two-camera capture-and-fit body measurement station"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -22,6 +26,17 @@ enum Command {
     SynthSet(fitstation::synth::SynthSetArgs),
     /// Score fits of recordings against their ground truth.
     Eval(fitstation::eval::EvalArgs),
+    /// Time a pipeline stage on realistic inputs.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCommand,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCommand {
+    /// Mean value deformation: encoding, paper-style and fast decoding, warm refit, libigl peer.
+    Deform(fitstation::deform::bench::BenchArgs),
 }
 
 fn main() -> anyhow::Result<()> {
@@ -33,6 +48,9 @@ fn main() -> anyhow::Result<()> {
         Command::Synth(args) => fitstation::synth::run(args)?,
         Command::SynthSet(args) => fitstation::synth::run_set(args)?,
         Command::Eval(args) => fitstation::eval::run(args)?,
+        Command::Bench {
+            what: BenchCommand::Deform(args),
+        } => fitstation::deform::bench::run(args)?,
     }
     Ok(())
 }
