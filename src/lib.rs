@@ -12,6 +12,7 @@ pub mod body;
 pub mod camera;
 pub mod deform;
 pub mod eval;
+pub mod fit;
 pub mod measure;
 pub mod mesh;
 pub mod pipeline;

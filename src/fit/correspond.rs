@@ -270,6 +270,9 @@ pub fn find_targets(
         let t_vertex = (p - origin).dot(dir);
         let t_max = t_vertex.max(0.0) + opts.reach_m;
         let (t, outcome) = first_exit(cam, mask, origin, dir, t_max, opts.step_px);
+        if std::env::var_os("FITSTATION_DEBUG2").is_some() && c.part == Part::Torso && c.status == Status::Front {
+            eprintln!("p {p:.3} centroid {centroid:.3} origin {origin:.3} dir {dir:.3} px {:?} occ {:?}", cam.project(origin), cam.project(origin).map(|q| mask.occupancy(q)));
+        }
         match outcome {
             Exit::Found => {
                 stats.found += 1;
@@ -288,6 +291,17 @@ pub fn find_targets(
                 targets.push(None);
             }
         }
+    }
+    if std::env::var_os("FITSTATION_DEBUG").is_some() {
+        let mut per: std::collections::BTreeMap<String, [usize; 2]> = Default::default();
+        for (c, t) in set.controls.iter().zip(targets.iter()) {
+            let e = per.entry(format!("{:?}/{:?}", c.part, c.status)).or_default();
+            e[0] += 1;
+            if t.is_some() {
+                e[1] += 1;
+            }
+        }
+        eprintln!("targets per part/status (total, found): {per:?}");
     }
     stats
 }

@@ -29,6 +29,9 @@ use correspond::{ControlSet, MaskRef, Part, SearchOptions, TargetStats, Variant}
 use glam::DVec3;
 use std::sync::Arc;
 
+/// Height (fraction of stature) at which the candidate is placed on the silhouettes.
+const PLACEMENT_LEVEL: f64 = 0.55;
+
 /// Options of the fit.
 #[derive(Debug, Clone)]
 pub struct FitOptions {
@@ -101,7 +104,6 @@ pub struct FitStats {
 /// Per-subject state kept between frames.
 struct SubjectState {
     params: ShapeParams,
-    labels: Vec<Part>,
     controls: ControlSet,
     deformer: MvcDeformer,
     rest: TriMesh,
@@ -212,6 +214,14 @@ impl Fitter {
             }
             let rep = s.deformer.solve(&self.target_buf, &mut s.positions).map_err(|e| FitError::Deform(e.to_string()))?;
             stats.decode_iterations += rep.iterations;
+            if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                eprintln!("decode: {rep:?}");
+            }
+        }
+        if std::env::var_os("FITSTATION_DEBUG").is_some() {
+            let m = TriMesh::new(s.positions.clone(), self.library.template().mesh.triangles.clone());
+            let _ = crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_avatar.obj"), &m);
+            let _ = crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_candidate.obj"), &s.rest);
         }
         pose::restore_rigid_parts(&s.rest.positions, &s.rigid, &mut s.positions);
         // Residual after the solve.
@@ -257,10 +267,13 @@ impl Fitter {
         }
         // 3. Body, scaled to the stature and placed on the subject.
         let mut body = self.library.body(&params);
-        let centre = shape::section_centre(f, sd, 0.55 * obs.stature_m, obs.torso_point).map(|c| c.0).unwrap_or(obs.torso_point);
         let stature = body.bounds().map(|b| b.size().y).unwrap_or(1.0).max(1e-3);
         let k = obs.stature_m / stature;
-        body.map_positions(|p| DVec3::new(p.x * k + centre.x, p.y * k, p.z * k + centre.z));
+        // Place the body so that its torso's centre at the reference height lands on the
+        // silhouettes' section centre there (x from the front view, z from the side).
+        let seen = shape::section_centre(f, sd, PLACEMENT_LEVEL * obs.stature_m, obs.torso_point).map(|c| c.0).unwrap_or(obs.torso_point);
+        let own = shape::torso_centre(&body.positions, &self.template_labels, PLACEMENT_LEVEL * stature).unwrap_or(DVec3::ZERO);
+        body.map_positions(|p| DVec3::new((p.x - own.x) * k + seen.x, p.y * k, (p.z - own.z) * k + seen.z));
         // 4. Pose synchronisation.
         pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
         // 5. Controls and deformer on the posed candidate.
@@ -274,7 +287,6 @@ impl Fitter {
         self.subject = Some(SubjectState {
             rigid,
             params,
-            labels: self.template_labels.clone(),
             controls,
             deformer,
             positions: body.positions.clone(),
@@ -297,7 +309,7 @@ fn shape_refine(
     const DAMPING: f64 = 1e-4;
     let obs = observed.as_vec();
     let mut buf = Vec::new();
-    let mut residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
+    let residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
         library.body_into(p, buf);
         let d = shape::mesh_descriptor(buf, labels).as_vec();
         d.iter().zip(&obs).map(|(a, b)| if a.is_finite() && b.is_finite() { a - b } else { 0.0 }).collect()

@@ -86,6 +86,18 @@ pub fn mesh_descriptor(positions: &[DVec3], labels: &[Part]) -> ShapeDescriptor 
     }
 }
 
+/// Centre of the x and z extents of the torso vertices within a band around height `y`.
+pub fn torso_centre(positions: &[DVec3], labels: &[Part], y: f64) -> Option<DVec3> {
+    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
+    for (p, l) in positions.iter().zip(labels) {
+        if *l == Part::Torso && (p.y - y).abs() <= BAND_HALF_M {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+    }
+    (hi.x > lo.x).then(|| DVec3::new(0.5 * (lo.x + hi.x), y, 0.5 * (lo.z + hi.z)))
+}
+
 /// Where the silhouette is left when walking from `start` along `dir` (station frame),
 /// or None when `start` is not inside the silhouette or no boundary is within `reach_m`.
 pub fn silhouette_exit(cam: &Camera, mask: MaskRef<'_>, start: DVec3, dir: DVec3, reach_m: f64) -> Option<DVec3> {
