@@ -9,4 +9,8 @@
 //! wires them together with capture and the screen.
 
 pub mod camera;
+pub mod contour;
+pub mod imgproc;
+pub mod landmarks;
 pub mod mesh;
+pub mod segment;
