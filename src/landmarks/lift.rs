@@ -11,7 +11,7 @@
 //! side camera's centre (central projection between parallel planes is a homothety),
 //! so one table of the side axis on x = 0 serves every x0.
 
-use super::analysis::{self, FrontFeatures, FrontSplit, SideFeatures};
+use super::analysis::{self, FrontFeatures, SideFeatures};
 use super::{LandmarkName, NamedPoint, SilhouetteOptions, SilhouetteResult, Verdict};
 use crate::camera::{Camera, StationCalibration};
 use glam::{DVec2, DVec3};
@@ -275,15 +275,13 @@ pub fn lift_all(
     }
 
     // Verdicts that need the landmarks.
-    if FrontSplit::from(ff).is_none() || ff.crotch.is_none() {
-        if ff.crotch.is_none() {
-            lm.verdicts.push(Verdict::LegsTogether);
-        }
-        let (l, r) = (ff.armpit_left.is_none(), ff.armpit_right.is_none());
-        if l || r {
-            lm.verdicts
-                .push(Verdict::ArmsTouchingTorso { left: l, right: r });
-        }
+    if ff.crotch.is_none() {
+        lm.verdicts.push(Verdict::LegsTogether);
+    }
+    let (l, r) = (ff.armpit_left.is_none(), ff.armpit_right.is_none());
+    if l || r {
+        lm.verdicts
+            .push(Verdict::ArmsTouchingTorso { left: l, right: r });
     }
     // Position on the mark: x from the crotch (else the figure's centre), z from the
     // side axis at hip height.
