@@ -323,6 +323,9 @@ pub struct SceneParams {
     pub shadow: bool,
     /// Noise seed.
     pub seed: u64,
+    /// A plain studio backdrop (one colour, no texture, wall and floor alike) instead of
+    /// the textured wall and floor: the paper's still-image case.
+    pub plain_backdrop: bool,
 }
 
 impl Default for SceneParams {
@@ -332,6 +335,7 @@ impl Default for SceneParams {
             gain: 1.0,
             shadow: true,
             seed: 1,
+            plain_backdrop: false,
         }
     }
 }
@@ -400,7 +404,17 @@ impl Renderer {
     }
 
     /// Colour of the backdrop (wall or floor) along a ray, before gain and noise.
-    fn backdrop(&self, o: DVec3, d: DVec3, people: &[Phantom], shadow: bool) -> [f64; 3] {
+    fn backdrop(
+        &self,
+        o: DVec3,
+        d: DVec3,
+        people: &[Phantom],
+        shadow: bool,
+        plain: bool,
+    ) -> [f64; 3] {
+        if plain {
+            return WALL;
+        }
         let axis = self.camera.axis_in_station();
         let horiz = DVec3::new(axis.x, 0.0, axis.z).normalize_or_zero();
         let wall_point = horiz * WALL_DISTANCE_M;
@@ -475,7 +489,7 @@ impl Renderer {
                     hit[k] = true;
                     color[k] = c;
                 }
-                None => color[k] = self.backdrop(o, d, people, shadow),
+                None => color[k] = self.backdrop(o, d, people, shadow, scene.plain_backdrop),
             }
         }
         // Anti-aliasing on the silhouette's edge.
@@ -502,7 +516,7 @@ impl Renderer {
                             let d = self.ray(px);
                             let s = match self.body(o, d, people) {
                                 Some((_, c)) => c,
-                                None => self.backdrop(o, d, people, shadow),
+                                None => self.backdrop(o, d, people, shadow, scene.plain_backdrop),
                             };
                             for ch in 0..3 {
                                 acc[ch] += s[ch] / (n * n) as f64;
