@@ -179,8 +179,57 @@ fn check_landmarks(params: PhantomParams, label: &str) {
             .iter()
             .any(|p| p.name == "side_torso" && p.status == st));
     }
-    // Left arm's left half is its outer edge: larger x than the right half at the elbow.
-    let _ = DVec3::ZERO;
+    // Limb-axis correction: knee, elbow and wrist joints lie on the limb's axis (front
+    // plane), whatever the limb's angle.
+    for (side, knee, elbow, wrist) in [
+        (
+            1.0,
+            LandmarkName::KneeLeft,
+            LandmarkName::ElbowLeft,
+            LandmarkName::WristLeft,
+        ),
+        (
+            -1.0,
+            LandmarkName::KneeRight,
+            LandmarkName::ElbowRight,
+            LandmarkName::WristRight,
+        ),
+    ] {
+        let (arm, leg) = body.limb_axes(side);
+        for (name, axes) in [(knee, &leg), (elbow, &arm), (wrist, &arm)] {
+            let j = lm.get(name).unwrap().station;
+            let d = axes
+                .iter()
+                .map(|&(a, b)| dist_to_segment_xy(j, a, b))
+                .fold(f64::INFINITY, f64::min);
+            println!(
+                "{label}: {:<12} ({:+.4}, {:.4}) is {:.1} mm off the limb axis",
+                name.as_str(),
+                j.x,
+                j.y,
+                d * 1e3
+            );
+            assert!(
+                d < MAX_AXIS_OFFSET_M,
+                "{label}: {} is {:.1} mm off the limb axis",
+                name.as_str(),
+                d * 1e3
+            );
+        }
+    }
+}
+
+/// Joints from cuts may sit this far from the limb's axis (front plane), metres.
+const MAX_AXIS_OFFSET_M: f64 = 0.008;
+
+fn dist_to_segment_xy(p: DVec3, a: DVec3, b: DVec3) -> f64 {
+    let (p, a, b) = (
+        glam::DVec2::new(p.x, p.y),
+        glam::DVec2::new(a.x, a.y),
+        glam::DVec2::new(b.x, b.y),
+    );
+    let t = ((p - a).dot(b - a) / (b - a).length_squared()).clamp(0.0, 1.0);
+    (a + (b - a) * t).distance(p)
 }
 
 #[test]
