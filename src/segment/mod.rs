@@ -247,12 +247,22 @@ pub struct BackgroundModel {
     band_out: Vec<u8>,
 }
 
-/// Model of one pixel: colour E, |E|^2 and the squared noise radius.
+/// Model of one pixel in eight bytes (the band re-test is bound by memory latency):
+/// colour E in 1/256 of a level, and the squared noise radius.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 struct PixelModel {
-    e: [f32; 3],
-    ee: f32,
-    tau2: f32,
+    e_q8: [u16; 3],
+    tau2: u16,
+}
+
+/// Fixed-point scale of `PixelModel::e_q8`.
+const COLOR_Q: f32 = 256.0;
+
+impl PixelModel {
+    #[inline(always)]
+    fn color(&self) -> [f32; 3] {
+        self.e_q8.map(|v| v as f32 * (1.0 / COLOR_Q))
+    }
 }
 
 /// The model at the coarse-grid pixels in 8-bit colour and 16-bit squared radius (five
@@ -371,22 +381,30 @@ impl BackgroundModel {
 
     #[inline]
     fn set_model(&mut self, i: usize, m: [f32; 3], tau2: f32) {
-        // Keep |E| away from zero so the ratios stay defined on black backdrops.
-        let m = m.map(|v| v.max(1.0));
-        let ee = m[0] * m[0] + m[1] * m[1] + m[2] * m[2];
-        self.px[i] = PixelModel { e: m, ee, tau2 };
         let w = self.width as usize;
-        let (x, y) = (i % w, i / w);
+        self.set_model_xy(i, i % w, i / w, m, tau2);
+    }
+
+    /// Sets pixel `i` = (x, y) of the model (and its coarse copy when on the coarse grid).
+    /// Values are positive, so `+ 0.5` and truncation round them without a libm call.
+    #[inline]
+    fn set_model_xy(&mut self, i: usize, x: usize, y: usize, m: [f32; 3], tau2: f32) {
+        // Keep |E| away from zero so the ratios stay defined on black backdrops.
+        let m = m.map(|v| v.clamp(1.0, 255.0));
+        let tau2_q = (tau2.clamp(0.0, u16::MAX as f32) + 0.5) as u16;
+        self.px[i] = PixelModel {
+            e_q8: m.map(|v| (v * COLOR_Q + 0.5) as u16),
+            tau2: tau2_q,
+        };
         if x % COARSE as usize == 0 && y % COARSE as usize == 0 {
-            let cw = w.div_ceil(COARSE as usize);
+            let cw = (self.width as usize).div_ceil(COARSE as usize);
             let k = (y / COARSE as usize) * cw + x / COARSE as usize;
             let c = &mut self.coarse_model;
             if k < c.er.len() {
-                let q = |v: f32| v.round().clamp(1.0, 255.0) as u8;
-                c.er[k] = q(m[0]);
-                c.eg[k] = q(m[1]);
-                c.eb[k] = q(m[2]);
-                c.tau2[k] = tau2.round().clamp(0.0, u16::MAX as f32) as u16;
+                c.er[k] = (m[0] + 0.5) as u8;
+                c.eg[k] = (m[1] + 0.5) as u8;
+                c.eb[k] = (m[2] + 0.5) as u8;
+                c.tau2[k] = tau2_q;
             }
         }
     }
@@ -394,17 +412,16 @@ impl BackgroundModel {
     /// The model colour of a pixel.
     pub fn model_rgb(&self, x: u32, y: u32) -> [f32; 3] {
         let i = (y * self.width + x) as usize;
-        self.px[i].e
+        self.px[i].color()
     }
 
     /// Horprasert-style foreground test of pixel index `i` with colour `p`.
     #[inline(always)]
     fn is_foreground(&self, i: usize, p: [u8; 3]) -> bool {
-        let PixelModel {
-            e: [er, eg, eb],
-            ee,
-            tau2,
-        } = self.px[i];
+        let m = self.px[i];
+        let [er, eg, eb] = m.color();
+        let ee = er * er + eg * eg + eb * eb;
+        let tau2 = m.tau2 as f32;
         let dr = p[0] as f32 - er;
         let dg = p[1] as f32 - eg;
         let db = p[2] as f32 - eb;
@@ -431,7 +448,7 @@ impl BackgroundModel {
         }
         let i = (y * self.width + x) as usize;
         let p = frame.as_raw();
-        let e = self.px[i].e;
+        let e = self.px[i].color();
         let dr = p[3 * i] as f32 - e[0];
         let dg = p[3 * i + 1] as f32 - e[1];
         let db = p[3 * i + 2] as f32 - e[2];
@@ -565,6 +582,7 @@ impl BackgroundModel {
         stats.phase_ms.components = clock.lap();
         // 3. Upsample, then re-test the band along the border at full resolution.
         // (mask_out is all zero here: fill the coarse runs, then copy the row down.)
+        let mut upsampled_px = 0u64;
         let c2 = COARSE as usize;
         for cy in 0..ch {
             let crow = &self.coarse_body[cy * cw..(cy + 1) * cw];
@@ -579,7 +597,9 @@ impl BackgroundModel {
                 let x0 = x + a;
                 let len = crow[x0..].iter().position(|&v| v == 0).unwrap_or(cw - x0);
                 x = x0 + len;
-                first[x0 * c2..(x * c2).min(w)].fill(MASK_ON);
+                let span = &mut first[x0 * c2..(x * c2).min(w)];
+                span.fill(MASK_ON);
+                upsampled_px += (span.len() * c2.min(h - y)) as u64;
                 any = true;
             }
             if any {
@@ -654,7 +674,9 @@ impl BackgroundModel {
         }
         stats.band_px = self.band_px.len() as u32;
         for (&i, &v) in self.band_px.iter().zip(&self.band_out) {
-            mask_out.data[i as usize] = v;
+            let old = &mut mask_out.data[i as usize];
+            upsampled_px = upsampled_px + (v != 0) as u64 - (*old != 0) as u64;
+            *old = v;
             self.band_state[i as usize] = BAND_NONE;
         }
 
@@ -668,11 +690,7 @@ impl BackgroundModel {
             max_y: ((c.max_y + 1) * COARSE).min(self.height),
         };
         stats.person_box = Some(pb);
-        stats.person_px = mask_out.data
-            [(pb.min_y * self.width) as usize..(pb.max_y * self.width) as usize]
-            .iter()
-            .filter(|&&v| v != 0)
-            .count() as u64;
+        stats.person_px = upsampled_px;
         stats.touches = BorderTouch {
             top: mask_out.data[..w].iter().any(|&v| v != 0),
             bottom: mask_out.data[(h - 1) * w..].iter().any(|&v| v != 0),
@@ -716,14 +734,14 @@ impl BackgroundModel {
                 if self.is_foreground(i, p) {
                     continue; // someone else, or a change too large to learn silently
                 }
-                let e = self.px[i].e;
+                let e = self.px[i].color();
                 let m = [
                     e[0] + rate * (p[0] as f32 - e[0]),
                     e[1] + rate * (p[1] as f32 - e[1]),
                     e[2] + rate * (p[2] as f32 - e[2]),
                 ];
-                let t = self.px[i].tau2;
-                self.set_model(i, m, t);
+                let t = self.px[i].tau2 as f32;
+                self.set_model_xy(i, x, y, m, t);
             }
             y += ADAPT_ROW_STRIDE as usize;
         }
@@ -850,6 +868,7 @@ mod tests {
         let iou = mask.iou(&truth);
         assert!(iou > 0.97, "iou {iou}");
         assert_eq!(st.large_components, 1);
+        assert_eq!(st.person_px, mask.area());
         assert!(!st.touches.bottom);
     }
 
