@@ -55,10 +55,13 @@ pub fn ray_plane(cam: &Camera, n: DVec2, axis: PlaneAxis, value: f64) -> DVec3 {
     c + d * t
 }
 
+/// How far beyond the side contour's height range the axis is continued, metres.
+const AXIS_CLAMP_M: f64 = 0.05;
 /// Height step of the side-axis table, metres.
 const AXIS_TABLE_STEP_M: f64 = 0.004;
 
-/// The side contour's axis (midpoint of its extreme z at each height) on the plane x = 0,
+/// The side contour's axis (midpoint of its widest inside interval at each height, the
+/// paper's step 1 made robust to a hand held in front of the body) on the plane x = 0,
 /// tabulated by height, plus the homothety to other planes x = x0.
 #[derive(Debug, Clone, Default)]
 pub struct SideAxis {
@@ -87,31 +90,43 @@ impl SideAxis {
             });
         s.v0 = lo;
         let rows = ((hi - lo) / AXIS_TABLE_STEP_M) as usize + 1;
-        s.min_u = vec![f64::INFINITY; rows];
-        s.max_u = vec![f64::NEG_INFINITY; rows];
+        // Crossings of every table row (half-open rule), then per row the widest inside
+        // interval: the trunk (or leg), not a hand held in front of it.
+        let mut cross: Vec<(usize, f64)> = Vec::new();
         for i in 0..n {
             let (a, b) = (plane[i], plane[(i + 1) % n]);
             let (ya, yb) = (a.y.min(b.y), a.y.max(b.y));
-            let k0 = ((ya - lo) / AXIS_TABLE_STEP_M).ceil().max(0.0) as usize;
-            let mut k = k0;
+            let mut k = ((ya - lo) / AXIS_TABLE_STEP_M).ceil().max(0.0) as usize;
             while k < rows {
                 let v = lo + k as f64 * AXIS_TABLE_STEP_M;
                 if v > yb {
                     break;
                 }
-                let u = if (b.y - a.y).abs() > 1e-15 {
-                    a.x + (v - a.y) / (b.y - a.y) * (b.x - a.x)
-                } else {
-                    a.x.min(b.x)
-                };
-                s.min_u[k] = s.min_u[k].min(u);
-                s.max_u[k] = s.max_u[k].max(u);
-                if (b.y - a.y).abs() <= 1e-15 {
-                    s.min_u[k] = s.min_u[k].min(a.x.min(b.x));
-                    s.max_u[k] = s.max_u[k].max(a.x.max(b.x));
+                if (a.y <= v) != (b.y <= v) {
+                    cross.push((k, a.x + (v - a.y) / (b.y - a.y) * (b.x - a.x)));
                 }
                 k += 1;
             }
+        }
+        cross.sort_by(|p, q| p.0.cmp(&q.0).then(p.1.total_cmp(&q.1)));
+        s.min_u = vec![f64::INFINITY; rows];
+        s.max_u = vec![f64::NEG_INFINITY; rows];
+        let mut j = 0;
+        while j < cross.len() {
+            let k = cross[j].0;
+            let mut e = j;
+            while e < cross.len() && cross[e].0 == k {
+                e += 1;
+            }
+            let row = &cross[j..e];
+            let widest = row
+                .chunks_exact(2)
+                .max_by(|p, q| (p[1].1 - p[0].1).total_cmp(&(q[1].1 - q[0].1)));
+            if let Some(w) = widest {
+                s.min_u[k] = w[0].1;
+                s.max_u[k] = w[1].1;
+            }
+            j = e;
         }
         s
     }
@@ -126,9 +141,23 @@ impl SideAxis {
         if self.min_u.is_empty() {
             return None;
         }
+        // Slightly above the side contour's top (the front view's head top is seen on a
+        // rim a little higher) or below its bottom: the nearest row with an axis.
+        let reach = AXIS_CLAMP_M / AXIS_TABLE_STEP_M;
+        let last = (self.min_u.len() - 1) as f64;
         let f = (y - self.v0) / AXIS_TABLE_STEP_M;
-        if f < 0.0 {
+        if f < -reach || f > last + reach {
             return None;
+        }
+        if f <= 0.0 || f >= last {
+            let range: Box<dyn Iterator<Item = usize>> = if f <= 0.0 {
+                Box::new(0..self.min_u.len())
+            } else {
+                Box::new((0..self.min_u.len()).rev())
+            };
+            return range
+                .take(reach.ceil() as usize + 1)
+                .find_map(|k| self.row_axis(k));
         }
         let k = f.floor() as usize;
         let t = f - k as f64;
