@@ -1,12 +1,9 @@
-//! The `fitstation` command line.
+//! The `fitstation` command line. Each subcommand's arguments and logic live in its
+//! module; this file only dispatches.
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(
-    name = "fitstation",
-    version,
-    about = "Two-camera capture-and-fit body measurement station"
-)]
+#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -14,12 +11,16 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Print the version.
-    Version,
-    /// Body templates and the shape library (import, prepare, bodies).
-    Templates(fitstation::body::TemplatesArgs),
+    /// Replay a recording through the station; write avatar.obj and report.json.
+    Replay(fitstation::station::cli::ReplayArgs),
+    /// Fit one front and one side still; write avatar.obj and report.json.
+    Fit(fitstation::station::cli::FitArgs),
+    /// Landmarks, joints and frame verdicts from one front and one side image.
+    Landmarks(fitstation::landmarks::cli::LandmarksArgs),
     /// Measure a body mesh: stature and tape girths (ISO 8559-1).
     Measure(fitstation::measure::MeasureArgs),
+    /// Body templates and the shape library (import, prepare, bodies).
+    Templates(fitstation::body::TemplatesArgs),
     /// Render a synthetic two-camera recording with its ground truth beside it.
     Synth(fitstation::synth::SynthArgs),
     /// Render a deterministic evaluation set of synthetic subjects.
@@ -31,6 +32,8 @@ enum Command {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Print the version.
+    Version,
 }
 
 #[derive(Subcommand)]
@@ -42,15 +45,16 @@ enum BenchCommand {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
-        Command::Templates(args) => fitstation::body::run(args)?,
+        Command::Replay(args) => fitstation::station::cli::run_replay(&args)?,
+        Command::Fit(args) => fitstation::station::cli::run_fit(&args)?,
+        Command::Landmarks(args) => fitstation::landmarks::cli::run(args)?,
         Command::Measure(args) => fitstation::measure::run(args)?,
+        Command::Templates(args) => fitstation::body::run(args)?,
         Command::Synth(args) => fitstation::synth::run(args)?,
         Command::SynthSet(args) => fitstation::synth::run_set(args)?,
         Command::Eval(args) => fitstation::eval::run(args)?,
-        Command::Bench {
-            what: BenchCommand::Deform(args),
-        } => fitstation::deform::bench::run(args)?,
+        Command::Bench { what: BenchCommand::Deform(args) } => fitstation::deform::bench::run(args)?,
+        Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
     }
     Ok(())
 }
