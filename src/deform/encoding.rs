@@ -26,8 +26,14 @@ const REL_EPS: f64 = 1e-10;
 const MAX_ELEVATION_SINE: f64 = 1.0 - 1e-9;
 /// Ridge of the minimum-norm affine weight system, relative to its trace.
 const AFFINE_RIDGE: f64 = 1e-11;
-/// Reproduction tolerance of an encoding at rest, relative to the ring radius.
-const REPRODUCTION_TOL: f64 = 1e-8;
+/// Refinement steps of the minimum-norm affine weights.
+const AFFINE_REFINEMENTS: usize = 3;
+/// Reproduction tolerance of the tangential weights, relative to the ring radius (the
+/// mean value weights fall back to affine weights beyond it).
+const WEIGHT_REPRODUCTION_TOL: f64 = 1e-10;
+/// Reproduction tolerance of the whole decoding at rest, relative to the ring radius (the
+/// normal part falls back to [`RingEncodingKind::RingHeight`] beyond it).
+const REPRODUCTION_TOL: f64 = 1e-7;
 
 /// How a vertex's normal component is encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -130,12 +136,24 @@ fn affine_weights(q: &[[f64; 2]], target: [f64; 2], out: &mut [f64]) {
     }
     let ridge = AFFINE_RIDGE * (g.x_axis.x + g.y_axis.y + g.z_axis.z).max(f64::MIN_POSITIVE);
     g += DMat3::from_diagonal(DVec3::splat(ridge));
-    let z = g.inverse() * DVec3::new(1.0, target[0], target[1]);
-    let mut sum = 0.0;
+    let g_inv = g.inverse();
+    let b = DVec3::new(1.0, target[0], target[1]);
+    let z = g_inv * b;
     for (i, p) in q.iter().enumerate() {
         out[i] = z.x + z.y * p[0] + z.z * p[1];
-        sum += out[i];
     }
+    // Iterative refinement removes the bias of the ridge where the system is regular.
+    for _ in 0..AFFINE_REFINEMENTS {
+        let mut r = b;
+        for (w, p) in out.iter().zip(q) {
+            r -= *w * DVec3::new(1.0, p[0], p[1]);
+        }
+        let dz = g_inv * r;
+        for (i, p) in q.iter().enumerate() {
+            out[i] += dz.x + dz.y * p[0] + dz.z * p[1];
+        }
+    }
+    let sum: f64 = out.iter().sum();
     if !(sum.is_finite() && sum.abs() > REL_EPS) {
         out.iter_mut().for_each(|w| *w = 1.0 / m as f64);
     } else {
@@ -231,21 +249,23 @@ impl MeanValueEncoding {
         let own_p = project(own);
         let e1 = n.any_orthonormal_vector();
         let e2 = n.cross(e1);
+        // In-plane coordinates relative to v', in units of the ring radius (weights are
+        // scale-free; the unit keeps the tolerances relative).
+        let radius = plane.radius.max(f64::MIN_POSITIVE);
         q.clear();
         for &i in nb {
-            let d = project(positions[i as usize]) - own_p;
+            let d = (project(positions[i as usize]) - own_p) / radius;
             q.push([d.dot(e1), d.dot(e2)]);
         }
-        let radius = plane.radius.max(f64::MIN_POSITIVE);
         let w = &mut self.weights[off..off + m];
-        let ok = closed && m >= 3 && mean_value_weights(q, radius, w).is_some();
+        let ok = closed && m >= 3 && mean_value_weights(q, 1.0, w).is_some();
         let reproduces = |w: &[f64]| {
             let (mut x, mut y) = (0.0, 0.0);
             for (wi, p) in w.iter().zip(q.iter()) {
                 x += wi * p[0];
                 y += wi * p[1];
             }
-            (x * x + y * y).sqrt() <= REPRODUCTION_TOL * radius
+            (x * x + y * y).sqrt() <= WEIGHT_REPRODUCTION_TOL
         };
         if !ok || !reproduces(w) {
             affine_weights(q, [0.0, 0.0], w);

@@ -5,7 +5,10 @@
 
 use super::anderson::Anderson;
 use super::encoding::MeanValueEncoding;
-use super::solver::{components, fixed_with_anchors, Constraints, NormalEquations, RowSystem};
+use super::solver::{
+    component_anchor_candidates, components, fixed_with_anchors, Constraints, NormalEquations,
+    RowSystem,
+};
 use super::{
     check_solve_inputs, control_mask, ConvergenceMonitor, DecodeOptions, DecodeReport, DecoderKind,
     DeformError,
@@ -21,6 +24,7 @@ pub struct MvcDeformer {
     controls: Vec<u32>,
     is_control: Vec<bool>,
     component: Vec<u32>,
+    anchor_candidates: Vec<Vec<u32>>,
     /// Fixed vertices (controls + anchors of uncontrolled components) and the anchors.
     fixed: Vec<bool>,
     anchors: Vec<u32>,
@@ -53,17 +57,31 @@ impl MvcDeformer {
         }
         let rings = rest.one_rings();
         let encoding = MeanValueEncoding::encode(rest, &rings);
-        Self::from_encoding(encoding, kind, opts)
+        Self::from_encoding(rest, encoding, kind, opts)
     }
 
-    /// Like [`Self::new`] with an encoding computed beforehand.
+    /// Like [`Self::new`] with an encoding of `rest` computed beforehand.
+    ///
+    /// # Errors
+    /// As [`Self::new`]; also an encoding of another vertex count.
     pub fn from_encoding(
+        rest: &TriMesh,
         encoding: MeanValueEncoding,
         kind: DecoderKind,
         opts: DecodeOptions,
     ) -> Result<Self, DeformError> {
         let n = encoding.vertex_count();
+        if rest.vertex_count() != n {
+            return Err(DeformError::PositionCount {
+                got: rest.vertex_count(),
+                expected: n,
+            });
+        }
+        if !(opts.constraint_weight > 0.0) {
+            return Err(DeformError::BadConstraintWeight(opts.constraint_weight));
+        }
         let component = components(encoding.rings());
+        let anchor_candidates = component_anchor_candidates(&component, &rest.positions);
         let system = match kind {
             DecoderKind::FastGaussNewton => Some(NormalEquations::new(RowSystem::from_rings(
                 encoding.rings(),
@@ -78,6 +96,7 @@ impl MvcDeformer {
             controls: Vec::new(),
             is_control: vec![false; n],
             component,
+            anchor_candidates,
             fixed: Vec::new(),
             anchors: Vec::new(),
             system,
@@ -114,6 +133,7 @@ impl MvcDeformer {
         fixed_with_anchors(
             &self.is_control,
             &self.component,
+            &self.anchor_candidates,
             &mut self.fixed,
             &mut self.anchors,
         );
