@@ -44,7 +44,14 @@ impl Anderson {
         }
     }
 
-    /// Forgets the history (start of a solve).
+    /// Starts a new solve of the same map family (same control set, new targets): the
+    /// stored differences still describe the map's Jacobian and are kept, but no
+    /// difference is formed across the jump of the targets.
+    pub(crate) fn restart(&mut self) {
+        self.has_prev = false;
+    }
+
+    /// Forgets the history (new control set).
     pub(crate) fn reset(&mut self) {
         self.count = 0;
         self.head = 0;

@@ -70,7 +70,13 @@ struct RingPlane {
 
 /// Fits the plane of method.md section 2 to the neighbours `nb` of a vertex at `own`.
 /// `own` is only used to orient the plane when the neighbours are collinear.
-fn ring_plane(nb: &[u32], closed: bool, positions: &[DVec3], own: DVec3) -> RingPlane {
+fn ring_plane(
+    nb: &[u32],
+    closed: bool,
+    positions: &[DVec3],
+    own: DVec3,
+    need_radius: bool,
+) -> RingPlane {
     let m = nb.len();
     let at = |i: usize| positions[nb[i] as usize];
     let mut centre = DVec3::ZERO;
@@ -78,30 +84,36 @@ fn ring_plane(nb: &[u32], closed: bool, positions: &[DVec3], own: DVec3) -> Ring
         centre += at(i);
     }
     centre /= m as f64;
-    let mut radius = 0.0;
     let mut far = DVec3::ZERO;
-    let mut far_len = -1.0;
+    let mut far2 = -1.0;
+    let mut sum = DVec3::ZERO;
+    let mut prev = at(m - 1) - centre;
     for i in 0..m {
         let d = at(i) - centre;
-        let len = d.length();
-        radius += len;
-        if len > far_len {
-            far_len = len;
+        let l2 = d.length_squared();
+        if l2 > far2 {
+            far2 = l2;
             far = d;
         }
+        // sum_i (v_i - l) x (v_{i+1} - l), the open fan without its closing edge.
+        if closed || i > 0 {
+            sum += prev.cross(d);
+        }
+        prev = d;
     }
-    radius /= m as f64;
-    let mut sum = DVec3::ZERO;
-    let edges = if closed { m } else { m.saturating_sub(1) };
-    for i in 0..edges {
-        sum += (at(i) - centre).cross(at((i + 1) % m) - centre);
+    let mean_radius = || (0..m).map(|i| (at(i) - centre).length()).sum::<f64>() / m as f64;
+    if sum.length() > REL_EPS * far2 && sum.is_finite() {
+        let radius = if need_radius { mean_radius() } else { 0.0 };
+        return RingPlane {
+            centre,
+            normal: sum.normalize(),
+            radius,
+        };
     }
-    let scale = radius * radius;
-    let normal = if sum.length() > REL_EPS * scale && sum.is_finite() {
-        sum.normalize()
-    } else if radius > 0.0 && far_len > 0.0 {
+    let radius = mean_radius();
+    let normal = if radius > 0.0 && far2 > 0.0 {
         // Collinear neighbours: the plane through their line containing the vertex.
-        let dir = far / far_len;
+        let dir = far / far2.sqrt();
         let off = own - centre;
         let perp = off - off.dot(dir) * dir;
         if perp.length() > REL_EPS * radius {
@@ -241,7 +253,7 @@ impl MeanValueEncoding {
         }
         let closed = !self.rings.is_boundary(v);
         let own = positions[v];
-        let plane = ring_plane(nb, closed, positions, own);
+        let plane = ring_plane(nb, closed, positions, own, true);
         let n = plane.normal;
         // Projection onto the plane through l with normal n (d = -n.l; the plane of
         // method.md passes through the mean of the neighbours).
@@ -327,7 +339,13 @@ impl MeanValueEncoding {
         if nb.is_empty() {
             return 0.0;
         }
-        let plane = ring_plane(nb, !self.rings.is_boundary(v), positions, positions[v]);
+        let plane = ring_plane(
+            nb,
+            !self.rings.is_boundary(v),
+            positions,
+            positions[v],
+            false,
+        );
         let n = plane.normal;
         let project = |p: DVec3| p - (p - plane.centre).dot(n) * n;
         let mut p = DVec3::ZERO;
@@ -360,7 +378,14 @@ impl MeanValueEncoding {
         }
         let off = self.rings.offset(v);
         let w = &self.weights[off..off + nb.len()];
-        let plane = ring_plane(nb, !self.rings.is_boundary(v), positions, positions[v]);
+        let need_radius = self.kind[v] == RingEncodingKind::RingHeight;
+        let plane = ring_plane(
+            nb,
+            !self.rings.is_boundary(v),
+            positions,
+            positions[v],
+            need_radius,
+        );
         let n = plane.normal;
         let mut affine = DVec3::ZERO;
         let mut height = 0.0; // sum w_i (v_i - l).n

@@ -137,6 +137,7 @@ impl MvcDeformer {
             &mut self.fixed,
             &mut self.anchors,
         );
+        self.anderson.reset();
         if let Some(sys) = &mut self.system {
             let mode = if self.opts.constraint_weight.is_finite() {
                 Constraints::Weighted(self.opts.constraint_weight)
@@ -166,7 +167,7 @@ impl MvcDeformer {
         }
         let mut monitor = ConvergenceMonitor::new(self.opts.max_move_m);
         let mut report = DecodeReport::default();
-        self.anderson.reset();
+        self.anderson.restart();
         for it in 0..self.opts.max_iterations {
             let max_move = match self.kind {
                 DecoderKind::PaperIterative => self.paper_sweep(positions),
@@ -249,6 +250,12 @@ impl MvcDeformer {
             }
         }
         r
+    }
+
+    /// Forgets the fast decoder's acceleration history (it is kept from solve to solve
+    /// while the control set stays, which speeds up refits after small target moves).
+    pub fn reset_history(&mut self) {
+        self.anderson.reset();
     }
 
     /// The encoding of the rest mesh.
