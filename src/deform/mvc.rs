@@ -167,7 +167,10 @@ impl MvcDeformer {
         }
         let mut monitor = ConvergenceMonitor::new(self.opts.max_move_m);
         let mut report = DecodeReport::default();
-        self.anderson.restart();
+        // A fresh history per solve: differences carried over from the previous targets
+        // saved a few steps on the body with rigid extremities but tripled the refit
+        // with free ones (measured), so they are not kept.
+        self.anderson.reset();
         for it in 0..self.opts.max_iterations {
             let max_move = match self.kind {
                 DecoderKind::PaperIterative => self.paper_sweep(positions),
@@ -252,8 +255,8 @@ impl MvcDeformer {
         r
     }
 
-    /// Forgets the fast decoder's acceleration history (it is kept from solve to solve
-    /// while the control set stays, which speeds up refits after small target moves).
+    /// Forgets the fast decoder's acceleration history (each solve starts afresh anyway;
+    /// kept for callers that interleave their own steps).
     pub fn reset_history(&mut self) {
         self.anderson.reset();
     }
