@@ -27,7 +27,13 @@ pub(crate) struct Anderson {
     count: usize,
     head: usize,
     has_prev: bool,
+    /// Largest fixed-point residual of the previous step (for the restart safeguard).
+    last_residual: f64,
 }
+
+/// The history is dropped when the fixed-point residual grows by more than this factor
+/// in one step (stale or misleading differences).
+const RESTART_GROWTH: f64 = 2.0;
 
 impl Anderson {
     pub(crate) fn new(n: usize) -> Self {
@@ -41,11 +47,13 @@ impl Anderson {
             count: 0,
             head: 0,
             has_prev: false,
+            last_residual: f64::INFINITY,
         }
     }
 
-    /// Forgets the history (start of a solve).
+    /// Forgets the history (start of a solve, new control set).
     pub(crate) fn reset(&mut self) {
+        self.last_residual = f64::INFINITY;
         self.count = 0;
         self.head = 0;
         self.has_prev = false;
@@ -56,6 +64,16 @@ impl Anderson {
     pub(crate) fn step(&mut self, x: &mut [DVec3], g: &[DVec3]) -> (f64, f64) {
         let n = self.n;
         let mut fmax = 0.0f64;
+        for v in 0..n {
+            fmax = fmax.max((g[v] - x[v]).length_squared());
+        }
+        let fmax = fmax.sqrt();
+        if fmax > RESTART_GROWTH * self.last_residual {
+            self.count = 0;
+            self.head = 0;
+            self.has_prev = false;
+        }
+        self.last_residual = fmax;
         if self.has_prev {
             let col = self.head * n;
             for v in 0..n {
@@ -76,7 +94,6 @@ impl Anderson {
         }
         for v in 0..n {
             let f = g[v] - x[v];
-            fmax = fmax.max(f.length_squared());
             self.f_prev[v] = f;
             self.g_prev[v] = g[v];
         }
@@ -101,7 +118,7 @@ impl Anderson {
             }
             x[v] = next;
         }
-        (max_move.sqrt(), fmax.sqrt())
+        (max_move.sqrt(), fmax)
     }
 
     /// gamma = argmin |f - DF gamma| through the ridge-regularised normal equations.

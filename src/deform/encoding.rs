@@ -26,8 +26,14 @@ const REL_EPS: f64 = 1e-10;
 const MAX_ELEVATION_SINE: f64 = 1.0 - 1e-9;
 /// Ridge of the minimum-norm affine weight system, relative to its trace.
 const AFFINE_RIDGE: f64 = 1e-11;
-/// Reproduction tolerance of an encoding at rest, relative to the ring radius.
-const REPRODUCTION_TOL: f64 = 1e-8;
+/// Refinement steps of the minimum-norm affine weights.
+const AFFINE_REFINEMENTS: usize = 3;
+/// Reproduction tolerance of the tangential weights, relative to the ring radius (the
+/// mean value weights fall back to affine weights beyond it).
+const WEIGHT_REPRODUCTION_TOL: f64 = 1e-10;
+/// Reproduction tolerance of the whole decoding at rest, relative to the ring radius (the
+/// normal part falls back to [`RingEncodingKind::RingHeight`] beyond it).
+const REPRODUCTION_TOL: f64 = 1e-7;
 
 /// How a vertex's normal component is encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,7 +70,13 @@ struct RingPlane {
 
 /// Fits the plane of method.md section 2 to the neighbours `nb` of a vertex at `own`.
 /// `own` is only used to orient the plane when the neighbours are collinear.
-fn ring_plane(nb: &[u32], closed: bool, positions: &[DVec3], own: DVec3) -> RingPlane {
+fn ring_plane(
+    nb: &[u32],
+    closed: bool,
+    positions: &[DVec3],
+    own: DVec3,
+    need_radius: bool,
+) -> RingPlane {
     let m = nb.len();
     let at = |i: usize| positions[nb[i] as usize];
     let mut centre = DVec3::ZERO;
@@ -72,30 +84,36 @@ fn ring_plane(nb: &[u32], closed: bool, positions: &[DVec3], own: DVec3) -> Ring
         centre += at(i);
     }
     centre /= m as f64;
-    let mut radius = 0.0;
     let mut far = DVec3::ZERO;
-    let mut far_len = -1.0;
+    let mut far2 = -1.0;
+    let mut sum = DVec3::ZERO;
+    let mut prev = at(m - 1) - centre;
     for i in 0..m {
         let d = at(i) - centre;
-        let len = d.length();
-        radius += len;
-        if len > far_len {
-            far_len = len;
+        let l2 = d.length_squared();
+        if l2 > far2 {
+            far2 = l2;
             far = d;
         }
+        // sum_i (v_i - l) x (v_{i+1} - l), the open fan without its closing edge.
+        if closed || i > 0 {
+            sum += prev.cross(d);
+        }
+        prev = d;
     }
-    radius /= m as f64;
-    let mut sum = DVec3::ZERO;
-    let edges = if closed { m } else { m.saturating_sub(1) };
-    for i in 0..edges {
-        sum += (at(i) - centre).cross(at((i + 1) % m) - centre);
+    let mean_radius = || (0..m).map(|i| (at(i) - centre).length()).sum::<f64>() / m as f64;
+    if sum.length() > REL_EPS * far2 && sum.is_finite() {
+        let radius = if need_radius { mean_radius() } else { 0.0 };
+        return RingPlane {
+            centre,
+            normal: sum.normalize(),
+            radius,
+        };
     }
-    let scale = radius * radius;
-    let normal = if sum.length() > REL_EPS * scale && sum.is_finite() {
-        sum.normalize()
-    } else if radius > 0.0 && far_len > 0.0 {
+    let radius = mean_radius();
+    let normal = if radius > 0.0 && far2 > 0.0 {
         // Collinear neighbours: the plane through their line containing the vertex.
-        let dir = far / far_len;
+        let dir = far / far2.sqrt();
         let off = own - centre;
         let perp = off - off.dot(dir) * dir;
         if perp.length() > REL_EPS * radius {
@@ -130,12 +148,24 @@ fn affine_weights(q: &[[f64; 2]], target: [f64; 2], out: &mut [f64]) {
     }
     let ridge = AFFINE_RIDGE * (g.x_axis.x + g.y_axis.y + g.z_axis.z).max(f64::MIN_POSITIVE);
     g += DMat3::from_diagonal(DVec3::splat(ridge));
-    let z = g.inverse() * DVec3::new(1.0, target[0], target[1]);
-    let mut sum = 0.0;
+    let g_inv = g.inverse();
+    let b = DVec3::new(1.0, target[0], target[1]);
+    let z = g_inv * b;
     for (i, p) in q.iter().enumerate() {
         out[i] = z.x + z.y * p[0] + z.z * p[1];
-        sum += out[i];
     }
+    // Iterative refinement removes the bias of the ridge where the system is regular.
+    for _ in 0..AFFINE_REFINEMENTS {
+        let mut r = b;
+        for (w, p) in out.iter().zip(q) {
+            r -= *w * DVec3::new(1.0, p[0], p[1]);
+        }
+        let dz = g_inv * r;
+        for (i, p) in q.iter().enumerate() {
+            out[i] += dz.x + dz.y * p[0] + dz.z * p[1];
+        }
+    }
+    let sum: f64 = out.iter().sum();
     if !(sum.is_finite() && sum.abs() > REL_EPS) {
         out.iter_mut().for_each(|w| *w = 1.0 / m as f64);
     } else {
@@ -223,7 +253,7 @@ impl MeanValueEncoding {
         }
         let closed = !self.rings.is_boundary(v);
         let own = positions[v];
-        let plane = ring_plane(nb, closed, positions, own);
+        let plane = ring_plane(nb, closed, positions, own, true);
         let n = plane.normal;
         // Projection onto the plane through l with normal n (d = -n.l; the plane of
         // method.md passes through the mean of the neighbours).
@@ -231,21 +261,23 @@ impl MeanValueEncoding {
         let own_p = project(own);
         let e1 = n.any_orthonormal_vector();
         let e2 = n.cross(e1);
+        // In-plane coordinates relative to v', in units of the ring radius (weights are
+        // scale-free; the unit keeps the tolerances relative).
+        let radius = plane.radius.max(f64::MIN_POSITIVE);
         q.clear();
         for &i in nb {
-            let d = project(positions[i as usize]) - own_p;
+            let d = (project(positions[i as usize]) - own_p) / radius;
             q.push([d.dot(e1), d.dot(e2)]);
         }
-        let radius = plane.radius.max(f64::MIN_POSITIVE);
         let w = &mut self.weights[off..off + m];
-        let ok = closed && m >= 3 && mean_value_weights(q, radius, w).is_some();
+        let ok = closed && m >= 3 && mean_value_weights(q, 1.0, w).is_some();
         let reproduces = |w: &[f64]| {
             let (mut x, mut y) = (0.0, 0.0);
             for (wi, p) in w.iter().zip(q.iter()) {
                 x += wi * p[0];
                 y += wi * p[1];
             }
-            (x * x + y * y).sqrt() <= REPRODUCTION_TOL * radius
+            (x * x + y * y).sqrt() <= WEIGHT_REPRODUCTION_TOL
         };
         if !ok || !reproduces(w) {
             affine_weights(q, [0.0, 0.0], w);
@@ -307,7 +339,13 @@ impl MeanValueEncoding {
         if nb.is_empty() {
             return 0.0;
         }
-        let plane = ring_plane(nb, !self.rings.is_boundary(v), positions, positions[v]);
+        let plane = ring_plane(
+            nb,
+            !self.rings.is_boundary(v),
+            positions,
+            positions[v],
+            false,
+        );
         let n = plane.normal;
         let project = |p: DVec3| p - (p - plane.centre).dot(n) * n;
         let mut p = DVec3::ZERO;
@@ -340,7 +378,14 @@ impl MeanValueEncoding {
         }
         let off = self.rings.offset(v);
         let w = &self.weights[off..off + nb.len()];
-        let plane = ring_plane(nb, !self.rings.is_boundary(v), positions, positions[v]);
+        let need_radius = self.kind[v] == RingEncodingKind::RingHeight;
+        let plane = ring_plane(
+            nb,
+            !self.rings.is_boundary(v),
+            positions,
+            positions[v],
+            need_radius,
+        );
         let n = plane.normal;
         let mut affine = DVec3::ZERO;
         let mut height = 0.0; // sum w_i (v_i - l).n

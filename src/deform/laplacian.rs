@@ -6,7 +6,10 @@
 //! value decoder. The coordinates are not rotated, so large rotations flatten detail: use
 //! it after skinning has matched the pose, for the small remaining corrections. Metres.
 
-use super::solver::{components, fixed_with_anchors, Constraints, NormalEquations, RowSystem};
+use super::solver::{
+    component_anchor_candidates, components, fixed_with_anchors, Constraints, NormalEquations,
+    RowSystem,
+};
 use super::{check_solve_inputs, control_mask, DecodeOptions, DecodeReport, DeformError};
 use crate::mesh::{OneRings, TriMesh};
 use glam::DVec3;
@@ -21,6 +24,7 @@ pub struct LaplacianDeformer {
     controls: Vec<u32>,
     is_control: Vec<bool>,
     component: Vec<u32>,
+    anchor_candidates: Vec<Vec<u32>>,
     fixed: Vec<bool>,
     anchors: Vec<u32>,
     system: NormalEquations,
@@ -102,12 +106,15 @@ impl LaplacianDeformer {
                 .sum();
         }
         let system = NormalEquations::new(rows)?;
+        let component = components(&rings);
+        let anchor_candidates = component_anchor_candidates(&component, &rest.positions);
         let mut d = LaplacianDeformer {
             opts,
             rest_delta,
             controls: Vec::new(),
             is_control: vec![false; n],
-            component: components(&rings),
+            component,
+            anchor_candidates,
             fixed: Vec::new(),
             anchors: Vec::new(),
             system,
@@ -130,6 +137,7 @@ impl LaplacianDeformer {
         fixed_with_anchors(
             &self.is_control,
             &self.component,
+            &self.anchor_candidates,
             &mut self.fixed,
             &mut self.anchors,
         );

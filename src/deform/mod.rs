@@ -24,12 +24,36 @@
 //!   order), repeated.
 //! - [`DecoderKind::FastGaussNewton`]: weights frozen, the normal offsets `s n` taken from
 //!   the current positions, the sparse least-squares system `min |L x - s n|^2` (rows of
-//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L` that is
-//!   computed once per control set (the symbolic analysis once per mesh); each
-//!   Gauss-Newton step only re-solves with a new right-hand side.
+//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L`. The
+//!   symbolic analysis is done once per mesh on the pattern with every row present;
+//!   `set_controls` only refactors numerically (control vertices become identity rows,
+//!   their coupling moves to the right-hand side), so changing the control set keeps the
+//!   analysis; each Gauss-Newton step and each new frame only re-solves with a new
+//!   right-hand side (faer, `Par::Seq`).
 //!
-//! With a finite `DecodeOptions::constraint_weight` the fast solver uses weighted (soft)
-//! constraints instead; its fixed point then differs from the hard one by O(1/weight).
+//! Why Anderson acceleration: with frozen normal offsets the step `x -> G(x)` ignores how
+//! the offsets turn and stretch with the surface. Where a thin part is held on one side
+//! only (fingers, or a limb pinned along one line) that feedback has a gain above one
+//! and the plain iteration diverges (measured on the MakeHuman body: moves growing 2.5x
+//! per step at the fingers). The paper's local sweeps stay stable but need hundreds to
+//! tens of thousands of sweeps. The fast decoder therefore mixes its last steps
+//! (Anderson acceleration, `anderson.rs`); that converges in 12-15 steps on the body when
+//! hands, feet and head are held (method.md: they move rigidly) and in 45-70 when they
+//! are free (the fingers dominate).
+//! A true Newton step would need the 3N x 3N Jacobian of the normal offsets (x, y and z
+//! coupled), about nine times the factor: not done here.
+//!
+//! Both decoders use hard constraints by default (control vertices eliminated), so they
+//! share the exact fixed point. With a finite `DecodeOptions::constraint_weight` the fast
+//! solver uses weighted (soft) constraints instead; its fixed point then differs from the
+//! hard one by O(1/weight). A connected part of the mesh without any control vertex is
+//! held by up to four anchor vertices at their current positions (they fix its affine
+//! motion, which the frozen-offset system cannot see); `MvcDeformer::anchors` lists them.
+//!
+//! Conditioning: the fixed point is soft along the same thin-part modes. On the body a
+//! largest residual `|v - v_mv|` of a few micrometres still leaves positions uncertain
+//! by up to about 0.4 mm there, so two decoders stopped at 0.1 mm can differ by about
+//! that much; the tests compare them at a tighter tolerance.
 //!
 //! # Convergence
 //! The paper stops at `sum |v - v_mv| / sum |v| < 1%`, which on a body a metre from the

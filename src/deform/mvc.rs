@@ -5,7 +5,10 @@
 
 use super::anderson::Anderson;
 use super::encoding::MeanValueEncoding;
-use super::solver::{components, fixed_with_anchors, Constraints, NormalEquations, RowSystem};
+use super::solver::{
+    component_anchor_candidates, components, fixed_with_anchors, Constraints, NormalEquations,
+    RowSystem,
+};
 use super::{
     check_solve_inputs, control_mask, ConvergenceMonitor, DecodeOptions, DecodeReport, DecoderKind,
     DeformError,
@@ -21,6 +24,7 @@ pub struct MvcDeformer {
     controls: Vec<u32>,
     is_control: Vec<bool>,
     component: Vec<u32>,
+    anchor_candidates: Vec<Vec<u32>>,
     /// Fixed vertices (controls + anchors of uncontrolled components) and the anchors.
     fixed: Vec<bool>,
     anchors: Vec<u32>,
@@ -53,17 +57,31 @@ impl MvcDeformer {
         }
         let rings = rest.one_rings();
         let encoding = MeanValueEncoding::encode(rest, &rings);
-        Self::from_encoding(encoding, kind, opts)
+        Self::from_encoding(rest, encoding, kind, opts)
     }
 
-    /// Like [`Self::new`] with an encoding computed beforehand.
+    /// Like [`Self::new`] with an encoding of `rest` computed beforehand.
+    ///
+    /// # Errors
+    /// As [`Self::new`]; also an encoding of another vertex count.
     pub fn from_encoding(
+        rest: &TriMesh,
         encoding: MeanValueEncoding,
         kind: DecoderKind,
         opts: DecodeOptions,
     ) -> Result<Self, DeformError> {
         let n = encoding.vertex_count();
+        if rest.vertex_count() != n {
+            return Err(DeformError::PositionCount {
+                got: rest.vertex_count(),
+                expected: n,
+            });
+        }
+        if !(opts.constraint_weight > 0.0) {
+            return Err(DeformError::BadConstraintWeight(opts.constraint_weight));
+        }
         let component = components(encoding.rings());
+        let anchor_candidates = component_anchor_candidates(&component, &rest.positions);
         let system = match kind {
             DecoderKind::FastGaussNewton => Some(NormalEquations::new(RowSystem::from_rings(
                 encoding.rings(),
@@ -78,6 +96,7 @@ impl MvcDeformer {
             controls: Vec::new(),
             is_control: vec![false; n],
             component,
+            anchor_candidates,
             fixed: Vec::new(),
             anchors: Vec::new(),
             system,
@@ -114,9 +133,11 @@ impl MvcDeformer {
         fixed_with_anchors(
             &self.is_control,
             &self.component,
+            &self.anchor_candidates,
             &mut self.fixed,
             &mut self.anchors,
         );
+        self.anderson.reset();
         if let Some(sys) = &mut self.system {
             let mode = if self.opts.constraint_weight.is_finite() {
                 Constraints::Weighted(self.opts.constraint_weight)
@@ -146,6 +167,9 @@ impl MvcDeformer {
         }
         let mut monitor = ConvergenceMonitor::new(self.opts.max_move_m);
         let mut report = DecodeReport::default();
+        // A fresh history per solve: differences carried over from the previous targets
+        // saved a few steps on the body with rigid extremities but tripled the refit
+        // with free ones (measured), so they are not kept.
         self.anderson.reset();
         for it in 0..self.opts.max_iterations {
             let max_move = match self.kind {
@@ -229,6 +253,12 @@ impl MvcDeformer {
             }
         }
         r
+    }
+
+    /// Forgets the fast decoder's acceleration history (each solve starts afresh anyway;
+    /// kept for callers that interleave their own steps).
+    pub fn reset_history(&mut self) {
+        self.anderson.reset();
     }
 
     /// The encoding of the rest mesh.

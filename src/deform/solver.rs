@@ -346,30 +346,72 @@ pub(crate) fn components(rings: &OneRings) -> Vec<u32> {
     comp
 }
 
-/// Fixed set for a control mask: the controls plus one anchor vertex (the first) of each
-/// component without a control, so the system stays definite (the anchor pins the free
-/// translation of that component at its current position).
+/// Up to four anchor vertices per connected component, spread out so that they fix every
+/// affine motion of the component: the first vertex, the one farthest from it, the one
+/// farthest from their line, the one farthest from the plane of those three.
+pub(crate) fn component_anchor_candidates(comp: &[u32], positions: &[DVec3]) -> Vec<Vec<u32>> {
+    let ncomp = comp.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
+    let mut members: Vec<Vec<u32>> = vec![Vec::new(); ncomp];
+    for (v, &c) in comp.iter().enumerate() {
+        members[c as usize].push(v as u32);
+    }
+    members
+        .into_iter()
+        .map(|vs| {
+            let mut out = vec![vs[0]];
+            let p = |v: u32| positions[v as usize];
+            let a = p(vs[0]);
+            let far = |score: &dyn Fn(DVec3) -> f64| {
+                vs.iter()
+                    .copied()
+                    .max_by(|&x, &y| score(p(x)).total_cmp(&score(p(y))))
+            };
+            if let Some(b) = far(&|q| (q - a).length()).filter(|&b| p(b) != a) {
+                out.push(b);
+                let ab = (p(b) - a).normalize();
+                if let Some(c) = far(&|q| (q - a).reject_from_normalized(ab).length()) {
+                    let n = ab.cross(p(c) - a);
+                    if n.length() > 0.0 {
+                        out.push(c);
+                        let n = n.normalize();
+                        if let Some(d) = far(&|q| (q - a).dot(n).abs()) {
+                            if (p(d) - a).dot(n).abs() > 0.0 {
+                                out.push(d);
+                            }
+                        }
+                    }
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// Fixed set for a control mask: the controls plus the anchor candidates of each
+/// component without a control, so the system stays definite (the anchors pin the free
+/// affine motion of that component at its current position).
 pub(crate) fn fixed_with_anchors(
     is_control: &[bool],
     comp: &[u32],
+    candidates: &[Vec<u32>],
     fixed: &mut Vec<bool>,
     anchors: &mut Vec<u32>,
 ) {
     fixed.clear();
     fixed.extend_from_slice(is_control);
     anchors.clear();
-    let ncomp = comp.iter().map(|&c| c as usize + 1).max().unwrap_or(0);
-    let mut has = vec![false; ncomp];
+    let mut has = vec![false; candidates.len()];
     for (v, &c) in comp.iter().enumerate() {
         if is_control[v] {
             has[c as usize] = true;
         }
     }
-    for (v, &c) in comp.iter().enumerate() {
-        if !has[c as usize] {
-            has[c as usize] = true;
-            fixed[v] = true;
-            anchors.push(v as u32);
+    for (c, cand) in candidates.iter().enumerate() {
+        if !has[c] {
+            for &v in cand {
+                fixed[v as usize] = true;
+                anchors.push(v);
+            }
         }
     }
 }
