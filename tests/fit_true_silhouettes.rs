@@ -34,6 +34,7 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
     let crotch = DVec3::from_array(truth.landmarks["crotch"]);
     let obs = Observation {
         stature_m: truth.measurements_mm["stature"] / 1000.0,
+
         torso_point: crotch + DVec3::new(0.0, 0.08, 0.0),
         arm_angles: None,
         leg_angles: None,
@@ -46,11 +47,12 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
     eprintln!("seed {seed} {variant:?}: {stats:?}");
     let avatar = TriMesh::new(pos.to_vec(), fitter.template_triangles().to_vec());
     let m = fitstation::measure::measure(&avatar).expect("measure").to_report_map();
+    // The truth mesh measured by the same module (not the renderer's own figures).
+    let true_mesh = fitstation::mesh::io::read_obj(&truth_dir(&rec).join("mesh.obj"), None).expect("truth mesh");
+    let t = fitstation::measure::measure(&true_mesh).expect("measure truth").to_report_map();
     std::fs::remove_dir_all(&dir).ok();
-    truth
-        .measurements_mm
-        .iter()
-        .map(|(k, v)| (k.clone(), m.get(k).and_then(|x| x.as_f64()).unwrap_or(f64::NAN), *v))
+    t.iter()
+        .map(|(k, v)| (k.clone(), m.get(k).and_then(|x| x.as_f64()).unwrap_or(f64::NAN), v.as_f64().unwrap_or(f64::NAN)))
         .collect()
 }
 

@@ -47,7 +47,7 @@ impl Part {
 }
 
 /// The side of its part a control vertex lies on (the paper's status).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Status {
     /// Greatest x: the subject's left side (front view).
@@ -137,11 +137,15 @@ pub struct SearchOptions {
     pub reach_m: f64,
     /// Sampling step along the projected segment, pixels.
     pub step_px: f64,
+    /// Largest accepted move of a control vertex, metres.
+    pub max_shift_m: f64,
+    /// Largest accepted difference from the neighbouring controls' moves, metres.
+    pub max_jump_m: f64,
 }
 
 impl Default for SearchOptions {
     fn default() -> Self {
-        SearchOptions { reach_m: 0.12, step_px: 0.5 }
+        SearchOptions { reach_m: 0.12, step_px: 0.5, max_shift_m: 0.08, max_jump_m: 0.02 }
     }
 }
 
@@ -164,6 +168,8 @@ pub struct TargetStats {
     pub no_boundary: usize,
     /// Behind a camera or outside the image.
     pub not_visible: usize,
+    /// Found, but moved too far, or unlike its neighbours along the same side of the part.
+    pub rejected: usize,
 }
 
 /// Chooses control vertices on `mesh` (the pose-synchronised candidate).
@@ -174,6 +180,7 @@ pub struct TargetStats {
 pub fn select_controls(
     mesh: &TriMesh,
     labels: &[Part],
+    excluded: &[bool],
     slice_step_m: f64,
     variant: Variant,
     front: &Camera,
@@ -189,7 +196,7 @@ pub fn select_controls(
         }
         let mut bands: Vec<Vec<u32>> = vec![Vec::new(); nslices];
         for (v, p) in mesh.positions.iter().enumerate() {
-            if labels.get(v) != Some(&part) {
+            if labels.get(v) != Some(&part) || excluded.get(v).copied().unwrap_or(false) {
                 continue;
             }
             let k = (((p.y - bb.min.y) / step) as usize).min(nslices - 1);
@@ -270,9 +277,6 @@ pub fn find_targets(
         let t_vertex = (p - origin).dot(dir);
         let t_max = t_vertex.max(0.0) + opts.reach_m;
         let (t, outcome) = first_exit(cam, mask, origin, dir, t_max, opts.step_px);
-        if std::env::var_os("FITSTATION_DEBUG2").is_some() && c.part == Part::Torso && c.status == Status::Front {
-            eprintln!("p {p:.3} centroid {centroid:.3} origin {origin:.3} dir {dir:.3} px {:?} occ {:?}", cam.project(origin), cam.project(origin).map(|q| mask.occupancy(q)));
-        }
         match outcome {
             Exit::Found => {
                 stats.found += 1;
@@ -292,6 +296,8 @@ pub fn find_targets(
             }
         }
     }
+    stats.rejected = reject_outliers(positions, set, targets, opts);
+    stats.found -= stats.rejected.min(stats.found);
     if std::env::var_os("FITSTATION_DEBUG").is_some() {
         let mut per: std::collections::BTreeMap<String, [usize; 2]> = Default::default();
         for (c, t) in set.controls.iter().zip(targets.iter()) {
@@ -304,6 +310,51 @@ pub fn find_targets(
         eprintln!("targets per part/status (total, found): {per:?}");
     }
     stats
+}
+
+/// Drops targets that move their vertex more than `max_shift_m`, or whose displacement
+/// differs from the median of the neighbouring slices' controls on the same side of the
+/// same part by more than `max_jump_m` (a silhouette notch, an arm touching the torso).
+/// Returns how many were dropped.
+fn reject_outliers(positions: &[DVec3], set: &ControlSet, targets: &mut [Option<DVec3>], opts: &SearchOptions) -> usize {
+    const HALF_WINDOW: usize = 2;
+    let disp: Vec<Option<f64>> = set
+        .controls
+        .iter()
+        .zip(targets.iter())
+        .map(|(c, t)| t.map(|t| (t - positions[c.vertex as usize]).length() * (t - positions[c.vertex as usize]).dot(c.status.axis()).signum()))
+        .collect();
+    let mut dropped = 0;
+    // Chains: controls of one (part, status), in slice order (they were pushed that way).
+    let mut chains: std::collections::HashMap<(Part, Status), Vec<usize>> = std::collections::HashMap::new();
+    for (i, c) in set.controls.iter().enumerate() {
+        chains.entry((c.part, c.status)).or_default().push(i);
+    }
+    let mut window: Vec<f64> = Vec::new();
+    for chain in chains.values() {
+        for (k, &i) in chain.iter().enumerate() {
+            let Some(d) = disp[i] else { continue };
+            if d.abs() > opts.max_shift_m {
+                targets[i] = None;
+                dropped += 1;
+                continue;
+            }
+            window.clear();
+            let lo = k.saturating_sub(HALF_WINDOW);
+            let hi = (k + HALF_WINDOW + 1).min(chain.len());
+            window.extend(chain[lo..hi].iter().filter_map(|&j| disp[j]));
+            if window.len() < 3 {
+                continue;
+            }
+            window.sort_by(|a, b| a.total_cmp(b));
+            let median = window[window.len() / 2];
+            if (d - median).abs() > opts.max_jump_m {
+                targets[i] = None;
+                dropped += 1;
+            }
+        }
+    }
+    dropped
 }
 
 enum Exit {
@@ -393,8 +444,9 @@ mod tests {
         let fm = render_mask(&big, &calib.front);
         let sm = render_mask(&big, &calib.side);
         let labels = vec![Part::Torso; small.vertex_count()];
+        let excluded = vec![false; small.vertex_count()];
         for variant in [Variant::SliceExtremes, Variant::PerspectiveRim] {
-            let set = select_controls(&small, &labels, 0.1, variant, &calib.front, &calib.side);
+            let set = select_controls(&small, &labels, &excluded, 0.1, variant, &calib.front, &calib.side);
             assert!(set.controls.len() > 40, "{}", set.controls.len());
             let views = [
                 (&calib.front, MaskRef { width: 640, height: 480, data: &fm }),
@@ -421,7 +473,7 @@ mod tests {
         let m = shapes::elliptic_cylinder(0.15, 0.15, 1.6, 8, 24);
         let empty = vec![0u8; 320 * 240];
         let labels = vec![Part::Torso; m.vertex_count()];
-        let set = select_controls(&m, &labels, 0.2, Variant::SliceExtremes, &calib.front, &calib.side);
+        let set = select_controls(&m, &labels, &vec![false; m.vertex_count()], 0.2, Variant::SliceExtremes, &calib.front, &calib.side);
         let views = [
             (&calib.front, MaskRef { width: 320, height: 240, data: &empty }),
             (&calib.side, MaskRef { width: 320, height: 240, data: &empty }),

@@ -29,6 +29,12 @@ use correspond::{ControlSet, MaskRef, Part, SearchOptions, TargetStats, Variant}
 use glam::DVec3;
 use std::sync::Arc;
 
+/// Gauss-Newton steps of one decode (a warm refit is one decode; convergence continues
+/// over the following frames).
+const DECODE_ITERATIONS_PER_SOLVE: usize = 8;
+/// Decodes per correspondence round of a first fit.
+const FIRST_FIT_SOLVES: usize = 4;
+
 /// Height (fraction of stature) at which the candidate is placed on the silhouettes.
 const PLACEMENT_LEVEL: f64 = 0.55;
 
@@ -107,8 +113,8 @@ struct SubjectState {
     controls: ControlSet,
     deformer: MvcDeformer,
     rest: TriMesh,
-    /// Vertex groups kept rigid (head, hands, feet).
-    rigid: Vec<Vec<u32>>,
+    /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
+    pinned: Vec<u32>,
     positions: Vec<DVec3>,
 }
 
@@ -207,23 +213,28 @@ impl Fitter {
             if ts.found * 4 < total {
                 return Err(FitError::TooFewTargets { found: ts.found, total });
             }
-            // Controls without a target this frame hold their current position.
+            // Controls without a target this frame hold their current position; the rigid
+            // parts hold the candidate's.
             self.target_buf.clear();
             for (c, t) in s.controls.controls.iter().zip(&self.targets) {
                 self.target_buf.push(t.unwrap_or(s.positions[c.vertex as usize]));
             }
-            let rep = s.deformer.solve(&self.target_buf, &mut s.positions).map_err(|e| FitError::Deform(e.to_string()))?;
-            stats.decode_iterations += rep.iterations;
-            if std::env::var_os("FITSTATION_DEBUG").is_some() {
-                eprintln!("decode: {rep:?}");
+            self.target_buf.extend(s.pinned.iter().map(|&v| s.rest.positions[v as usize]));
+            let solves = if warm { 1 } else { FIRST_FIT_SOLVES };
+            for _ in 0..solves {
+                let rep = s.deformer.solve(&self.target_buf, &mut s.positions).map_err(|e| FitError::Deform(e.to_string()))?;
+                stats.decode_iterations += rep.iterations;
+                if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                    eprintln!("decode: {rep:?}");
+                }
+                if rep.converged {
+                    break;
+                }
             }
         }
         if std::env::var_os("FITSTATION_DEBUG").is_some() {
-            let m = TriMesh::new(s.positions.clone(), self.library.template().mesh.triangles.clone());
-            let _ = crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_avatar.obj"), &m);
             let _ = crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_candidate.obj"), &s.rest);
         }
-        pose::restore_rigid_parts(&s.rest.positions, &s.rigid, &mut s.positions);
         // Residual after the solve.
         let mut sum = 0.0;
         let mut n = 0usize;
@@ -278,14 +289,21 @@ impl Fitter {
         pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
         // 5. Controls and deformer on the posed candidate.
         let step = body.mean_edge_length();
-        let controls = correspond::select_controls(&body, &self.template_labels, step, self.opts.variant, &calib.front, &calib.side);
-        let indices: Vec<u32> = controls.controls.iter().map(|c| c.vertex).collect();
-        let dopts = DecodeOptions::default();
+        let mut excluded = vec![false; body.vertex_count()];
+        for g in &self.rigid {
+            for &v in g {
+                excluded[v as usize] = true;
+            }
+        }
+        let controls = correspond::select_controls(&body, &self.template_labels, &excluded, step, self.opts.variant, &calib.front, &calib.side);
+        let pinned: Vec<u32> = (0..body.vertex_count() as u32).filter(|&v| excluded[v as usize]).collect();
+        let mut indices: Vec<u32> = controls.controls.iter().map(|c| c.vertex).collect();
+        indices.extend_from_slice(&pinned);
+        let dopts = DecodeOptions { max_iterations: DECODE_ITERATIONS_PER_SOLVE, ..DecodeOptions::default() };
         let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts).map_err(|e| FitError::Deform(e.to_string()))?;
         deformer.set_controls(&indices).map_err(|e| FitError::Deform(e.to_string()))?;
-        let rigid = self.rigid.clone();
         self.subject = Some(SubjectState {
-            rigid,
+            pinned,
             params,
             controls,
             deformer,
