@@ -8,5 +8,6 @@
 //! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
 //! wires them together with capture and the screen.
 
+pub mod calibrate;
 pub mod camera;
 pub mod mesh;
