@@ -50,6 +50,10 @@ pub const GROW_TOLERANCE: f64 = 0.3;
 pub const MAX_SEEDS: usize = 60;
 /// Largest half-window of the sub-pixel refinement, pixels (OpenCV's usual 11x11).
 pub const MAX_SUBPIX_HALF_WINDOW: i32 = 5;
+/// The point-symmetry step may move a corner at most this far, pixels.
+pub const SYMMETRY_MAX_SHIFT_PX: f64 = 1.0;
+/// Gaussian weight of the point-symmetry window, sigma as a fraction of its half size.
+pub const SYMMETRY_WEIGHT_FRACTION: f64 = 0.6;
 /// Sub-pixel iterations stop when the corner moves less than this, pixels.
 pub const SUBPIX_EPS_PX: f64 = 1e-3;
 /// Largest number of sub-pixel iterations.
@@ -105,9 +109,20 @@ struct Candidate {
     dir_b: DVec2,
 }
 
+/// How corners are refined to sub-pixel accuracy.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SubpixMethod {
+    /// OpenCV's `cornerSubPix` (Förstner): gradients orthogonal to `q - p`.
+    Forstner,
+    /// Förstner, then the point-symmetry refinement (lower bias; the default).
+    #[default]
+    PointSymmetry,
+}
+
 /// Reusable chessboard detector (owns its scratch images).
 #[derive(Default)]
 pub struct CornerDetector {
+    method: SubpixMethod,
     w: usize,
     h: usize,
     gray: Vec<f32>,
@@ -137,6 +152,14 @@ impl Grid {
 impl CornerDetector {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A detector with the given sub-pixel method.
+    pub fn with_method(method: SubpixMethod) -> Self {
+        CornerDetector {
+            method,
+            ..Self::default()
+        }
     }
 
     /// Finds the board's inner corners in a grey image.
@@ -283,6 +306,10 @@ impl CornerDetector {
         self.cands.clear();
         for (r, x, y) in peaks {
             let p0 = DVec2::new(x as f64, y as f64);
+            // The cheap ring test first; sub-pixel refinement only for survivors.
+            let Some((dir_a, dir_b)) = self.ring_test(p0, ring_r) else {
+                continue;
+            };
             let half = (2.0 * sigma)
                 .round()
                 .clamp(2.0, MAX_SUBPIX_HALF_WINDOW as f64) as i32;
@@ -292,14 +319,12 @@ impl CornerDetector {
             if (p - p0).length() > 2.0 * sigma.max(1.0) {
                 continue;
             }
-            if let Some((dir_a, dir_b)) = self.ring_test(p, ring_r) {
-                self.cands.push(Candidate {
-                    pos: p,
-                    response: r,
-                    dir_a,
-                    dir_b,
-                });
-            }
+            self.cands.push(Candidate {
+                pos: p,
+                response: r,
+                dir_a,
+                dir_b,
+            });
         }
         self.used.clear();
         self.used.resize(self.cands.len(), false);
@@ -405,6 +430,57 @@ impl CornerDetector {
             return None;
         }
         Some(c)
+    }
+
+    /// Step 4b: point-symmetry refinement. Around an inner corner the board is
+    /// symmetric under a half turn (exactly for the two edge lines through the corner,
+    /// to first order for the neighbouring squares), and any isotropic blur keeps that
+    /// symmetry, so the corner minimises `sum_d w_d (S(p + d) - S(p - d))²` over the
+    /// smoothed image S (Gauss-Newton). Bilinear interpolation errors at p + d and p - d
+    /// have mirrored phases and cancel to second order, which removes most of the
+    /// sampling bias left by the gradient method.
+    fn symmetric_refine(&self, start: DVec2, half: i32) -> Option<DVec2> {
+        let (w, h) = (self.w, self.h);
+        let s = |q: DVec2| sample(&self.smooth, w, h, q);
+        let grad = |q: DVec2| -> Option<DVec2> {
+            Some(DVec2::new(
+                s(q + DVec2::new(0.5, 0.0))? - s(q - DVec2::new(0.5, 0.0))?,
+                s(q + DVec2::new(0.0, 0.5))? - s(q - DVec2::new(0.0, 0.5))?,
+            ))
+        };
+        let sigma_w = SYMMETRY_WEIGHT_FRACTION * half as f64;
+        let inv_2s2 = 1.0 / (2.0 * sigma_w * sigma_w);
+        let r2_max = (half * half) as f64;
+        let mut p = start;
+        for _ in 0..SUBPIX_MAX_ITER {
+            let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+            for dy in 0..=half {
+                for dx in -half..=half {
+                    if (dy == 0 && dx <= 0) || ((dx * dx + dy * dy) as f64) > r2_max {
+                        continue;
+                    }
+                    let d = DVec2::new(dx as f64, dy as f64);
+                    let wgt = (-d.length_squared() * inv_2s2).exp();
+                    let r = s(p + d)? - s(p - d)?;
+                    let g = grad(p + d)? - grad(p - d)?;
+                    a11 += wgt * g.x * g.x;
+                    a12 += wgt * g.x * g.y;
+                    a22 += wgt * g.y * g.y;
+                    b1 += wgt * g.x * r;
+                    b2 += wgt * g.y * r;
+                }
+            }
+            let det = a11 * a22 - a12 * a12;
+            if det.abs() < 1e-12 * (a11 + a22).powi(2).max(1e-300) {
+                return None;
+            }
+            let step = DVec2::new(-(a22 * b1 - a12 * b2) / det, -(a11 * b2 - a12 * b1) / det);
+            p += step;
+            if step.length() < SUBPIX_EPS_PX {
+                break;
+            }
+        }
+        p.is_finite().then_some(p)
     }
 
     /// Step 3: tries seeds until a full board grows; Err(Some(dims)) gives the largest
@@ -656,6 +732,13 @@ impl CornerDetector {
                     *p = q;
                 }
             }
+            if self.method == SubpixMethod::PointSymmetry {
+                if let Some(q) = self.symmetric_refine(*p, half) {
+                    if (q - *p).length() < SYMMETRY_MAX_SHIFT_PX {
+                        *p = q;
+                    }
+                }
+            }
             if let Some((b, c)) = self.edge_blur(*p, half) {
                 blurs.push(b);
                 contrasts.push(c);
@@ -765,25 +848,34 @@ fn blur_f32(src: &[f32], dst: &mut [f32], tmp: &mut [f32], w: usize, h: usize, s
         .collect();
     let norm: f32 = kernel.iter().sum();
     let kernel: Vec<f32> = kernel.iter().map(|k| k / norm).collect();
+    let r = radius as usize;
     for y in 0..h {
         let row = &src[y * w..(y + 1) * w];
-        for x in 0..w {
+        let out = &mut tmp[y * w..(y + 1) * w];
+        for (x, o) in out.iter_mut().enumerate() {
             let mut s = 0.0;
-            for (k, kv) in kernel.iter().enumerate() {
-                let xx = (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
-                s += kv * row[xx];
+            if x >= r && x + r < w {
+                for (kv, v) in kernel.iter().zip(&row[x - r..=x + r]) {
+                    s += kv * v;
+                }
+            } else {
+                for (k, kv) in kernel.iter().enumerate() {
+                    let xx = (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
+                    s += kv * row[xx];
+                }
             }
-            tmp[y * w + x] = s;
+            *o = s;
         }
     }
+    dst.iter_mut().for_each(|v| *v = 0.0);
     for y in 0..h {
-        for x in 0..w {
-            let mut s = 0.0;
-            for (k, kv) in kernel.iter().enumerate() {
-                let yy = (y as isize + k as isize - radius).clamp(0, h as isize - 1) as usize;
-                s += kv * tmp[yy * w + x];
+        let out = &mut dst[y * w..(y + 1) * w];
+        for (k, kv) in kernel.iter().enumerate() {
+            let yy = (y as isize + k as isize - radius).clamp(0, h as isize - 1) as usize;
+            let src_row = &tmp[yy * w..(yy + 1) * w];
+            for (o, v) in out.iter_mut().zip(src_row) {
+                *o += kv * v;
             }
-            dst[y * w + x] = s;
         }
     }
 }

@@ -66,6 +66,10 @@ pub struct BoardRenderer {
     lattice: Vec<DVec2>,
     accum: Vec<f64>,
     tmp: Vec<f64>,
+    /// Region id seen at each pixel corner, and whether a pixel straddles regions.
+    classes: Vec<u64>,
+    values: Vec<f64>,
+    mixed: Vec<bool>,
 }
 
 impl BoardRenderer {
@@ -83,6 +87,9 @@ impl BoardRenderer {
             lattice,
             accum: vec![0.0; w * h],
             tmp: vec![0.0; w * h],
+            classes: vec![0; (w + 1) * (h + 1)],
+            values: vec![0.0; (w + 1) * (h + 1)],
+            mixed: vec![false; w * h],
         }
     }
 
@@ -114,30 +121,60 @@ impl BoardRenderer {
         let s = opts.supersample.max(1) as usize;
         let inv = 1.0 / s as f64;
         let weight = 1.0 / (s * s) as f64;
+        let margin = opts.margin_squares;
+        let ray = |n: DVec2| {
+            let dir_cam = DVec3::new(n.x, n.y, 1.0);
+            (rot_b * dir_cam, dir_cam)
+        };
+        // Adaptive supersampling: classify the pixel corners; a pixel is sampled
+        // finely when any corner in its 3x3 neighbourhood sees another region (a
+        // square's corner can poke into a pixel without covering any of its corners,
+        // but then it covers corners of the neighbours, squares being wider than 2 px).
+        let lw = w + 1;
+        for (k, n) in self.lattice.iter().enumerate() {
+            let (db, dc) = ray(*n);
+            let (class, value) = self.shade(board, margin, origin_b, db, station.as_ref(), dc);
+            self.classes[k] = class;
+            self.values[k] = value;
+        }
         for j in 0..h {
             for i in 0..w {
-                let c00 = self.lattice[j * (w + 1) + i];
-                let c10 = self.lattice[j * (w + 1) + i + 1];
-                let c01 = self.lattice[(j + 1) * (w + 1) + i];
-                let c11 = self.lattice[(j + 1) * (w + 1) + i + 1];
+                let k = j * lw + i;
+                let c = self.classes[k];
+                self.mixed[j * w + i] = self.classes[k + 1] != c
+                    || self.classes[k + lw] != c
+                    || self.classes[k + lw + 1] != c;
+            }
+        }
+        for j in 0..h {
+            for i in 0..w {
+                let fine = (j.saturating_sub(1)..(j + 2).min(h)).any(|jj| {
+                    (i.saturating_sub(1)..(i + 2).min(w)).any(|ii| self.mixed[jj * w + ii])
+                });
+                let c00 = self.lattice[j * lw + i];
+                let c10 = self.lattice[j * lw + i + 1];
+                let c01 = self.lattice[(j + 1) * lw + i];
+                let c11 = self.lattice[(j + 1) * lw + i + 1];
+                let at = |fx: f64, fy: f64| {
+                    c00 * ((1.0 - fx) * (1.0 - fy))
+                        + c10 * (fx * (1.0 - fy))
+                        + c01 * ((1.0 - fx) * fy)
+                        + c11 * (fx * fy)
+                };
+                if !fine {
+                    // One region over the pixel: its grey level at any corner.
+                    self.accum[j * w + i] = self.values[j * lw + i];
+                    continue;
+                }
                 let mut sum = 0.0;
                 for sy in 0..s {
                     let fy = (sy as f64 + 0.5) * inv;
                     for sx in 0..s {
                         let fx = (sx as f64 + 0.5) * inv;
-                        let n = c00 * ((1.0 - fx) * (1.0 - fy))
-                            + c10 * (fx * (1.0 - fy))
-                            + c01 * ((1.0 - fx) * fy)
-                            + c11 * (fx * fy);
-                        let dir_cam = DVec3::new(n.x, n.y, 1.0);
-                        sum += self.shade(
-                            board,
-                            opts.margin_squares,
-                            origin_b,
-                            rot_b * dir_cam,
-                            station.as_ref(),
-                            dir_cam,
-                        );
+                        let (db, dc) = ray(at(fx, fy));
+                        sum += self
+                            .shade(board, margin, origin_b, db, station.as_ref(), dc)
+                            .1;
                     }
                 }
                 self.accum[j * w + i] = sum * weight;
@@ -148,13 +185,17 @@ impl BoardRenderer {
         }
         let mut rng = SplitMix64(opts.seed);
         let mut out = image::GrayImage::new(w as u32, h as u32);
-        for (px, v) in out.pixels_mut().zip(&self.accum) {
-            let noisy = v + opts.noise_sigma * rng.gaussian();
-            px.0[0] = noisy.round().clamp(0.0, 255.0) as u8;
+        for (px, v) in out.as_mut().chunks_mut(2).zip(self.accum.chunks(2)) {
+            let (a, b) = rng.gaussian_pair();
+            for ((p, v), n) in px.iter_mut().zip(v).zip([a, b]) {
+                *p = (v + opts.noise_sigma * n).round().clamp(0.0, 255.0) as u8;
+            }
         }
         out
     }
 
+    /// The scene along one camera ray: (region id, grey level). Region ids: 0 wall,
+    /// 1 floor, 2 sheet margin, 3+ one id per chessboard square.
     fn shade(
         &self,
         board: &BoardSpec,
@@ -163,7 +204,7 @@ impl BoardRenderer {
         dir_b: DVec3,
         station: Option<&Rigid>,
         dir_cam: DVec3,
-    ) -> f64 {
+    ) -> (u64, f64) {
         // Board plane z = 0 in the board frame.
         let mut board_t = f64::INFINITY;
         if dir_b.z.abs() > 1e-12 {
@@ -185,15 +226,26 @@ impl BoardRenderer {
         }
         if board_t < floor_t {
             let p = origin_b + dir_b * board_t;
-            if board.is_black(p.x, p.y) {
-                BLACK_LEVEL
+            let i = (p.x / board.square_m).floor();
+            let j = (p.y / board.square_m).floor();
+            let inside = i >= -1.0 && j >= -1.0 && i < board.cols as f64 && j < board.rows as f64;
+            if !inside {
+                (2, WHITE_LEVEL)
             } else {
-                WHITE_LEVEL
+                let id = 3 + (i + 2.0) as u64 * 4096 + (j + 2.0) as u64;
+                (
+                    id,
+                    if board.is_black(p.x, p.y) {
+                        BLACK_LEVEL
+                    } else {
+                        WHITE_LEVEL
+                    },
+                )
             }
         } else if floor_t.is_finite() {
-            FLOOR_LEVEL
+            (1, FLOOR_LEVEL)
         } else {
-            WALL_LEVEL
+            (0, WALL_LEVEL)
         }
     }
 }
@@ -206,24 +258,32 @@ pub fn gaussian_blur(img: &mut [f64], tmp: &mut [f64], w: usize, h: usize, sigma
         .collect();
     let norm: f64 = kernel.iter().sum();
     let kernel: Vec<f64> = kernel.iter().map(|k| k / norm).collect();
+    let r = radius as usize;
     for y in 0..h {
-        for x in 0..w {
+        let row = &img[y * w..(y + 1) * w];
+        for (x, o) in tmp[y * w..(y + 1) * w].iter_mut().enumerate() {
             let mut s = 0.0;
-            for (k, kv) in kernel.iter().enumerate() {
-                let xx = (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
-                s += kv * img[y * w + xx];
+            if x >= r && x + r < w {
+                for (kv, v) in kernel.iter().zip(&row[x - r..=x + r]) {
+                    s += kv * v;
+                }
+            } else {
+                for (k, kv) in kernel.iter().enumerate() {
+                    let xx = (x as isize + k as isize - radius).clamp(0, w as isize - 1) as usize;
+                    s += kv * row[xx];
+                }
             }
-            tmp[y * w + x] = s;
+            *o = s;
         }
     }
+    img.iter_mut().for_each(|v| *v = 0.0);
     for y in 0..h {
-        for x in 0..w {
-            let mut s = 0.0;
-            for (k, kv) in kernel.iter().enumerate() {
-                let yy = (y as isize + k as isize - radius).clamp(0, h as isize - 1) as usize;
-                s += kv * tmp[yy * w + x];
+        for (k, kv) in kernel.iter().enumerate() {
+            let yy = (y as isize + k as isize - radius).clamp(0, h as isize - 1) as usize;
+            let (src, dst) = (&tmp[yy * w..(yy + 1) * w], &mut img[y * w..(y + 1) * w]);
+            for (o, v) in dst.iter_mut().zip(src) {
+                *o += kv * v;
             }
-            img[y * w + x] = s;
         }
     }
 }
@@ -245,8 +305,14 @@ impl SplitMix64 {
     }
     /// Standard normal.
     pub fn gaussian(&mut self) -> f64 {
+        self.gaussian_pair().0
+    }
+    /// Two independent standard normals (Box-Muller).
+    pub fn gaussian_pair(&mut self) -> (f64, f64) {
         let (u1, u2) = (self.uniform(), self.uniform());
-        (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        let r = (-2.0 * u1.ln()).sqrt();
+        let (s, c) = (std::f64::consts::TAU * u2).sin_cos();
+        (r * c, r * s)
     }
 }
 
@@ -269,8 +335,8 @@ pub mod rigs {
     use super::*;
     use crate::camera::{Camera, StationCalibration};
 
-    /// Landscape 1280x720 lens with mild barrel distortion (front camera of the tests).
-    pub fn front_intrinsics() -> Intrinsics {
+    /// Landscape 1280x720 lens with mild barrel distortion (the OpenCV comparison).
+    pub fn landscape_intrinsics() -> Intrinsics {
         Intrinsics {
             width: 1280,
             height: 720,
@@ -282,7 +348,20 @@ pub mod rigs {
         }
     }
 
-    /// Portrait 720x1280 lens (side camera of the tests).
+    /// Portrait 720x1280 lens of the front camera (a standing person fills the height).
+    pub fn front_intrinsics() -> Intrinsics {
+        Intrinsics {
+            width: 720,
+            height: 1280,
+            fx: 1012.0,
+            fy: 1010.0,
+            cx: 357.0,
+            cy: 644.0,
+            dist: [-0.11, 0.09, 0.0008, -0.0005, -0.02],
+        }
+    }
+
+    /// Portrait 720x1280 lens of the side camera.
     pub fn side_intrinsics() -> Intrinsics {
         Intrinsics {
             width: 720,
@@ -295,7 +374,7 @@ pub mod rigs {
         }
     }
 
-    /// Both cameras at station-like places: front ~3 m on +Z at 1.25 m, side ~3 m on +X
+    /// Both cameras at station-like places (portrait frames): front ~3 m on +Z at 1.25 m, side ~3 m on +X
     /// at 1.05 m, both slightly off-axis and aimed near the middle of the standing volume.
     pub fn station_truth() -> StationCalibration {
         let front = Camera {
@@ -348,12 +427,16 @@ pub mod rigs {
                 0.0,
             ),
         ];
+        // Depth so that the sheet spans 45-80% of the image's shorter side.
+        let sheet_extent = (board.cols.max(board.rows) as f64 + 3.2) * m;
+        let focal = 0.5 * (intrinsics.fx + intrinsics.fy);
+        let short_side = w.min(h);
         let mut out = Vec::with_capacity(count);
         for k in 0..MAX_TRIES {
             if out.len() == count {
                 break;
             }
-            let depth = 1.2 + 0.8 * rng.uniform();
+            let depth = sheet_extent * focal / (short_side * (0.45 + 0.35 * rng.uniform()));
             let angle = std::f64::consts::TAU * (out.len() as f64 + 0.3 * rng.uniform())
                 / count as f64
                 + 0.7 * k as f64;
@@ -387,6 +470,119 @@ pub mod rigs {
             }
         }
         out
+    }
+}
+
+/// A rendered station: board photos for both cameras, the placement board at the mark
+/// seen by both, and the truth.
+#[derive(Debug, Clone)]
+pub struct SyntheticStation {
+    pub truth: crate::camera::StationCalibration,
+    pub board: BoardSpec,
+    /// Height of the placement board's lowest inner-corner row, metres.
+    pub board_height_m: f64,
+    pub front_views: Vec<image::GrayImage>,
+    pub side_views: Vec<image::GrayImage>,
+    pub station_front: image::GrayImage,
+    pub station_side: image::GrayImage,
+}
+
+/// Renders a [`SyntheticStation`] with the rigs of [`rigs`]: `views` hand-held board
+/// poses per camera and the placement board at the mark (calib/README.md procedure).
+pub fn synthetic_station(
+    board: &BoardSpec,
+    views: usize,
+    board_height_m: f64,
+    opts: &RenderOptions,
+) -> SyntheticStation {
+    use crate::camera::View;
+    let truth = rigs::station_truth();
+    let placement = super::extrinsics::Placement {
+        board: *board,
+        lowest_row_height_m: board_height_m,
+    };
+    let station_from_board = placement.station_from_board();
+    let mut out_views: Vec<Vec<image::GrayImage>> = Vec::new();
+    let mut stations = Vec::new();
+    for (k, view) in View::BOTH.iter().enumerate() {
+        let cam = truth.camera(*view);
+        let mut r = BoardRenderer::new(cam.intrinsics);
+        let poses = rigs::handheld_poses(
+            board,
+            &cam.intrinsics,
+            views,
+            opts.seed.wrapping_add(101 * k as u64),
+        );
+        let imgs = poses
+            .iter()
+            .enumerate()
+            .map(|(i, p)| {
+                r.render(
+                    board,
+                    p,
+                    Background::Wall,
+                    &RenderOptions {
+                        seed: opts.seed.wrapping_add(1000 * k as u64 + i as u64),
+                        ..*opts
+                    },
+                )
+            })
+            .collect();
+        out_views.push(imgs);
+        let cs = cam.camera_from_station;
+        let camera_from_board = Rigid {
+            rotation: cs.rotation * station_from_board.rotation,
+            translation: cs.rotation * station_from_board.translation + cs.translation,
+        };
+        stations.push(r.render(
+            board,
+            &camera_from_board,
+            Background::Station {
+                camera_from_station: cs,
+            },
+            &RenderOptions {
+                seed: opts.seed.wrapping_add(7 + k as u64),
+                ..*opts
+            },
+        ));
+    }
+    let side_views = out_views.pop().unwrap_or_default();
+    let front_views = out_views.pop().unwrap_or_default();
+    let station_side = stations.pop().unwrap_or_default();
+    let station_front = stations.pop().unwrap_or_default();
+    SyntheticStation {
+        truth,
+        board: *board,
+        board_height_m,
+        front_views,
+        side_views,
+        station_front,
+        station_side,
+    }
+}
+
+impl SyntheticStation {
+    /// Writes `front/view_NN.png`, `side/view_NN.png`, `station_front.png`,
+    /// `station_side.png` and `truth.yaml` under `dir`.
+    pub fn write(&self, dir: &std::path::Path) -> Result<(), String> {
+        let err = |p: &std::path::Path, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
+        for (sub, imgs) in [("front", &self.front_views), ("side", &self.side_views)] {
+            let d = dir.join(sub);
+            std::fs::create_dir_all(&d).map_err(|e| err(&d, &e))?;
+            for (i, img) in imgs.iter().enumerate() {
+                let p = d.join(format!("view_{i:02}.png"));
+                img.save(&p).map_err(|e| err(&p, &e))?;
+            }
+        }
+        for (name, img) in [
+            ("station_front.png", &self.station_front),
+            ("station_side.png", &self.station_side),
+        ] {
+            let p = dir.join(name);
+            img.save(&p).map_err(|e| err(&p, &e))?;
+        }
+        let p = dir.join("truth.yaml");
+        self.truth.save(&p).map_err(|e| err(&p, &e))
     }
 }
 
