@@ -40,7 +40,7 @@ fn bench(c: &mut Criterion) {
             .iter()
             .map(|i| ViewInput {
                 name: String::new(),
-                detection: det.detect(i, &board).map_err(|e| e.to_string()),
+                detection: det.detect(i, &board),
             })
             .collect(),
     };

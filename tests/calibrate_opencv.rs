@@ -165,7 +165,7 @@ fn corners_and_intrinsics_match_opencv() {
                 .collect::<Vec<_>>(),
         );
         for (d, inp) in detectors.iter_mut().zip(inputs.iter_mut()) {
-            let det = d.detect(&img, &board).map_err(|e| e.to_string());
+            let det = d.detect(&img, &board);
             inp.push(ViewInput {
                 name: format!("view_{i:02}"),
                 detection: det,

@@ -33,7 +33,7 @@ fn views_of(camera: &str, imgs: &[image::GrayImage], board: &BoardSpec) -> Camer
         .enumerate()
         .map(|(i, img)| ViewInput {
             name: format!("view_{i:02}"),
-            detection: det.detect(img, board).map_err(|e| e.to_string()),
+            detection: det.detect(img, board),
         })
         .collect();
     CameraViews {

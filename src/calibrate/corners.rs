@@ -83,13 +83,31 @@ pub enum DetectError {
         candidates: usize,
         blur_sigma_px: Option<f64>,
     },
-    #[error("found only {found_cols}x{found_rows} of the board's {cols}x{rows} inner corners: the board is partly out of view, covered, or the --board size is wrong")]
+    #[error("found only {found_cols}x{found_rows} of the board's {cols}x{rows} inner corners: the board is partly out of view, covered, or the --board size is wrong{}", blur_hint(*blur_sigma_px))]
     Partial {
         found_cols: usize,
         found_rows: usize,
         cols: usize,
         rows: usize,
+        blur_sigma_px: Option<f64>,
     },
+}
+
+impl DetectError {
+    /// The image's blur estimate when it is above [`super::MAX_BLUR_SIGMA_PX`].
+    pub fn blurred(&self) -> Option<f64> {
+        match self {
+            DetectError::NotFound {
+                blur_sigma_px: Some(s),
+                ..
+            }
+            | DetectError::Partial {
+                blur_sigma_px: Some(s),
+                ..
+            } if *s > super::MAX_BLUR_SIGMA_PX => Some(*s),
+            _ => None,
+        }
+    }
 }
 
 fn blur_hint(b: Option<f64>) -> String {
@@ -100,6 +118,19 @@ fn blur_hint(b: Option<f64>) -> String {
         _ => String::new(),
     }
 }
+
+/// Blur and contrast measured across one edge.
+struct EdgeProfile {
+    sigma_px: f64,
+    contrast: f64,
+}
+
+/// 10-90% rise of a Gaussian-blurred step, in sigmas (2 x 1.2816).
+const RISE_10_90_PER_SIGMA: f64 = 2.563;
+/// Edge profiles reach this fraction of the corner spacing to either side.
+const EDGE_PROFILE_REACH: f64 = 0.45;
+/// Sample step along an edge profile, pixels.
+const EDGE_PROFILE_STEP_PX: f64 = 0.25;
 
 #[derive(Debug, Clone, Copy)]
 struct Candidate {
@@ -179,7 +210,7 @@ impl CornerDetector {
             self.find_candidates(scale);
             candidates = candidates.max(self.cands.len());
             match self.grow_board(board) {
-                Ok(points) => return Ok(self.finish(points, scale)),
+                Ok(points) => return Ok(self.finish(points, board)),
                 Err(Some(partial)) => {
                     if best_partial.is_none_or(|b| b.0 * b.1 < partial.0 * partial.1) {
                         best_partial = Some(partial);
@@ -200,6 +231,7 @@ impl CornerDetector {
                     found_rows,
                     cols: board.cols,
                     rows: board.rows,
+                    blur_sigma_px: self.global_blur_estimate(),
                 })
             }
             _ => Err(DetectError::NotFound {
@@ -710,7 +742,7 @@ impl CornerDetector {
 
     /// Final sub-pixel refinement with a window fitted to the local spacing, plus the
     /// blur and contrast measures.
-    fn finish(&self, mut points: Vec<DVec2>, _scale: f64) -> Detection {
+    fn finish(&self, mut points: Vec<DVec2>, board: &BoardSpec) -> Detection {
         let n = points.len();
         let mut min_spacing = f64::INFINITY;
         let mut nearest = vec![f64::INFINITY; n];
@@ -723,8 +755,6 @@ impl CornerDetector {
             }
             min_spacing = min_spacing.min(nearest[i]);
         }
-        let mut blurs = Vec::with_capacity(n);
-        let mut contrasts = Vec::with_capacity(n);
         for (p, near) in points.iter_mut().zip(&nearest) {
             let half = ((0.4 * near).floor() as i32).clamp(2, MAX_SUBPIX_HALF_WINDOW);
             if let Some(q) = self.subpix(*p, half) {
@@ -739,9 +769,22 @@ impl CornerDetector {
                     }
                 }
             }
-            if let Some((b, c)) = self.edge_blur(*p, half) {
-                blurs.push(b);
-                contrasts.push(c);
+        }
+        // Blur and contrast from profiles across the edges between row neighbours.
+        let mut blurs = Vec::new();
+        let mut contrasts = Vec::new();
+        for r in 0..board.rows {
+            for c in 0..board.cols.saturating_sub(1) {
+                let (Some(a), Some(b)) = (
+                    points.get(r * board.cols + c),
+                    points.get(r * board.cols + c + 1),
+                ) else {
+                    continue;
+                };
+                if let Some(e) = self.edge_profile(*a, *b) {
+                    blurs.push(e.sigma_px);
+                    contrasts.push(e.contrast);
+                }
             }
         }
         Detection {
@@ -752,24 +795,63 @@ impl CornerDetector {
         }
     }
 
-    /// Blur at a corner: contrast / (steepest gradient * sqrt(2 pi)) over the window.
-    fn edge_blur(&self, p: DVec2, half: i32) -> Option<(f64, f64)> {
-        let (mut lo, mut hi, mut g) = (f64::INFINITY, f64::NEG_INFINITY, 0.0f64);
-        for dy in -half..=half {
-            for dx in -half..=half {
-                let q = p + DVec2::new(dx as f64, dy as f64);
-                let v = sample(&self.smooth, self.w, self.h, q)?;
-                lo = lo.min(v);
-                hi = hi.max(v);
-                let gx = sample(&self.gx, self.w, self.h, q)?;
-                let gy = sample(&self.gy, self.w, self.h, q)?;
-                g = g.max((gx * gx + gy * gy).sqrt());
-            }
-        }
-        if g <= 0.0 {
+    /// Blur across the edge between two neighbouring corners `a` and `b`: the raw grey
+    /// profile perpendicular to the edge at its midpoint (averaged over a short strip
+    /// along the edge), its plateaus, and the 10-90% rise width; a Gaussian-blurred step
+    /// rises 10-90% over 2.563 sigma.
+    fn edge_profile(&self, a: DVec2, b: DVec2) -> Option<EdgeProfile> {
+        let along = b - a;
+        let len = along.length();
+        if len < 6.0 {
             return None;
         }
-        Some(((hi - lo) / (g * (std::f64::consts::TAU).sqrt()), hi - lo))
+        let t = along / len;
+        let n = DVec2::new(-t.y, t.x);
+        let mid = (a + b) * 0.5;
+        let half_len = EDGE_PROFILE_REACH * len;
+        let steps = (2.0 * half_len / EDGE_PROFILE_STEP_PX).ceil() as usize;
+        let mut prof = Vec::with_capacity(steps + 1);
+        for k in 0..=steps {
+            let off = -half_len + k as f64 * EDGE_PROFILE_STEP_PX;
+            let mut v = 0.0;
+            for s in [-1.0, 0.0, 1.0] {
+                v += sample(&self.gray, self.w, self.h, mid + n * off + t * s)?;
+            }
+            prof.push(v / 3.0);
+        }
+        let m = (prof.len() / 6).max(1);
+        let start = prof[..m].iter().sum::<f64>() / m as f64;
+        let end = prof[prof.len() - m..].iter().sum::<f64>() / m as f64;
+        let contrast = (end - start).abs();
+        if contrast < MIN_RING_CONTRAST {
+            return None;
+        }
+        // Orient the profile to rise, then find the 10% and 90% crossings.
+        let rising: Vec<f64> = if end > start {
+            prof
+        } else {
+            prof.iter().map(|v| -v).collect()
+        };
+        let (base, top) = if end > start {
+            (start, end)
+        } else {
+            (-start, -end)
+        };
+        let crossing = |level: f64| -> Option<f64> {
+            let thr = base + level * (top - base);
+            rising
+                .windows(2)
+                .position(|w| w[0] < thr && w[1] >= thr)
+                .map(|i| {
+                    let f = (thr - rising[i]) / (rising[i + 1] - rising[i]);
+                    (i as f64 + f) * EDGE_PROFILE_STEP_PX
+                })
+        };
+        let width = crossing(0.9)? - crossing(0.1)?;
+        Some(EdgeProfile {
+            sigma_px: width.max(0.0) / RISE_10_90_PER_SIGMA,
+            contrast,
+        })
     }
 
     /// Blur of the whole image when no board was found: the same ratio over the

@@ -7,7 +7,7 @@
 
 use super::board::BoardSpec;
 use super::bundle::{refine, BundleResult, IntrinsicsMode, ViewObservations, N_INTRINSIC};
-use super::corners::{median, CornerDetector, Detection};
+use super::corners::{median, CornerDetector, DetectError, Detection};
 use super::zhang::{closed_form, homography, pose_from_homography, StartMethod};
 use super::{CalibError, Progress, MAX_BLUR_SIGMA_PX};
 use crate::camera::{Intrinsics, Rigid};
@@ -41,7 +41,7 @@ pub const MIN_COVERAGE: f64 = 0.5;
 #[derive(Debug, Clone, PartialEq)]
 pub struct ViewInput {
     pub name: String,
-    pub detection: Result<Detection, String>,
+    pub detection: Result<Detection, DetectError>,
 }
 
 /// Images of one camera with their detections.
@@ -155,10 +155,10 @@ pub fn detect_views(
             .file_name()
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default();
-        let detection = detector.detect(&img, board).map_err(|e| e.to_string());
+        let detection = detector.detect(&img, board);
         let outcome = match &detection {
             Ok(d) => format!("board found (blur sigma {:.2} px)", d.blur_sigma_px),
-            Err(e) => e.clone(),
+            Err(e) => e.to_string(),
         };
         progress(&Progress::ViewSearched {
             camera: camera.to_string(),
@@ -198,7 +198,10 @@ pub fn calibrate_intrinsics(
     let mut candidates: Vec<(usize, &Vec<DVec2>)> = Vec::new();
     for (k, v) in input.views.iter().enumerate() {
         let outcome = match &v.detection {
-            Err(e) => Some(ViewOutcome::NotFound(e.clone())),
+            Err(e) => Some(match e.blurred() {
+                Some(sigma_px) => ViewOutcome::Blurred { sigma_px },
+                None => ViewOutcome::NotFound(e.to_string()),
+            }),
             Ok(d) if d.corners.len() != object.len() => {
                 Some(ViewOutcome::NotFound("wrong number of corners".into()))
             }
@@ -258,12 +261,25 @@ pub fn calibrate_intrinsics(
     if hs.len() != candidates.len() {
         return Err(CalibError::StartFailed { camera });
     }
-    let start =
-        closed_form(&hs, input.width, input.height).ok_or_else(|| CalibError::TooSimilarViews {
-            camera: camera.clone(),
-            spread_deg: 0.0,
+    let Some(start) = closed_form(&hs, input.width, input.height) else {
+        // Degenerate views: report their spread under a nominal lens.
+        let f = input.width.max(input.height) as f64;
+        let nominal = super::zhang::Pinhole {
+            fx: f,
+            fy: f,
+            cx: 0.5 * input.width as f64,
+            cy: 0.5 * input.height as f64,
+        };
+        let poses: Vec<Rigid> = hs
+            .iter()
+            .filter_map(|h| pose_from_homography(h, &nominal.k()))
+            .collect();
+        return Err(CalibError::TooSimilarViews {
+            camera,
+            spread_deg: orientation_spread_deg(&poses),
             needed_deg: MIN_ORIENTATION_SPREAD_DEG,
-        })?;
+        });
+    };
     let k = start.pinhole.k();
     let mut poses: Vec<Rigid> = Vec::with_capacity(hs.len());
     for h in &hs {
