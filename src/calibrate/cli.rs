@@ -170,6 +170,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             Some(prev) => {
                 println!("no station images: keeping the camera positions of {}", out.display());
                 extra.push(("extrinsics".into(), "kept from the previous calibration".into()));
+                // Keep the record of how those positions were measured.
+                for (k, v) in &prev.extra {
+                    if k == "board_height_mm" || k.ends_with("_placement_rms_px") {
+                        extra.push((k.clone(), v.clone()));
+                    }
+                }
                 [prev.front.camera_from_station, prev.side.camera_from_station]
             }
             None => {
