@@ -78,7 +78,7 @@ pub struct Detection {
 pub enum DetectError {
     #[error("image is empty")]
     Empty,
-    #[error("no chessboard corners found ({candidates} corner-like points){}", blur_hint(*blur_sigma_px))]
+    #[error("no chessboard corners found ({candidates} corner-like points){}: is the whole board in view, large enough (squares 10 px or more) and evenly lit?", blur_hint(*blur_sigma_px))]
     NotFound {
         candidates: usize,
         blur_sigma_px: Option<f64>,
@@ -129,6 +129,12 @@ struct EdgeProfile {
 const RISE_10_90_PER_SIGMA: f64 = 2.563;
 /// Edge profiles reach this fraction of the corner spacing to either side.
 const EDGE_PROFILE_REACH: f64 = 0.45;
+/// Global blur estimate: grid cell (one edge sample per cell), edges used, fewest edges
+/// for an answer, and the reach of each profile, pixels.
+const GLOBAL_BLUR_CELL_PX: usize = 16;
+const GLOBAL_BLUR_EDGES: usize = 200;
+const GLOBAL_BLUR_MIN_EDGES: usize = 10;
+const GLOBAL_BLUR_REACH_PX: f64 = 10.0;
 /// Sample step along an edge profile, pixels.
 const EDGE_PROFILE_STEP_PX: f64 = 0.25;
 
@@ -538,9 +544,10 @@ impl CornerDetector {
             if (dims.0 == board.cols && dims.1 == board.rows)
                 || (dims.0 == board.rows && dims.1 == board.cols)
             {
-                return Ok(self.orient(&grid, board));
-            }
-            if best.is_none_or(|b| b.0 * b.1 < dims.0 * dims.1) {
+                if !self.continues_beyond(&grid) {
+                    return Ok(self.orient(&grid, board));
+                }
+            } else if best.is_none_or(|b| b.0 * b.1 < dims.0 * dims.1) {
                 best = Some(dims);
             }
             // Corners of a failed grid may seed again only if it was small.
@@ -656,23 +663,9 @@ impl CornerDetector {
     /// Adds one column (side 0 right, 1 left) or row (2 bottom, 3 top) if every corner of
     /// it is found.
     fn extend(&mut self, grid: &mut Grid, side: usize) -> bool {
-        let (ni, nj) = (grid.ni(), grid.nj());
-        let line_len = if side < 2 { nj } else { ni };
-        // The three grid points nearest the border along the growth direction, for line k.
-        let pts = |k: usize, depth: usize| -> DVec2 {
-            let idx = match side {
-                0 => grid.idx[k][ni - 1 - depth],
-                1 => grid.idx[k][depth],
-                2 => grid.idx[nj - 1 - depth][k],
-                _ => grid.idx[depth][k],
-            };
-            self.cands[idx].pos
-        };
-        let mut new = Vec::with_capacity(line_len);
-        for k in 0..line_len {
-            let (p1, p2, p3) = (pts(k, 0), pts(k, 1), pts(k, 2));
-            let pred = p1 * 3.0 - p2 * 3.0 + p3;
-            let tol = GROW_TOLERANCE * (p1 - p2).length();
+        let preds = self.predict_line(grid, side);
+        let mut new = Vec::with_capacity(preds.len());
+        for (pred, tol) in preds {
             match self.nearest(pred, tol, &new) {
                 Some(c) => new.push(c),
                 None => return false,
@@ -696,6 +689,49 @@ impl CornerDetector {
             _ => grid.idx.insert(0, new),
         }
         true
+    }
+
+    /// Predicted positions (and tolerances) of the corners one line beyond side `side`
+    /// (0 right, 1 left, 2 bottom, 3 top): quadratic extrapolation along each grid line.
+    fn predict_line(&self, grid: &Grid, side: usize) -> Vec<(DVec2, f64)> {
+        let (ni, nj) = (grid.ni(), grid.nj());
+        let line_len = if side < 2 { nj } else { ni };
+        let pts = |k: usize, depth: usize| -> DVec2 {
+            let idx = match side {
+                0 => grid.idx[k][ni - 1 - depth],
+                1 => grid.idx[k][depth],
+                2 => grid.idx[nj - 1 - depth][k],
+                _ => grid.idx[depth][k],
+            };
+            self.cands[idx].pos
+        };
+        (0..line_len)
+            .map(|k| {
+                let (p1, p2, p3) = (pts(k, 0), pts(k, 1), pts(k, 2));
+                (
+                    p1 * 3.0 - p2 * 3.0 + p3,
+                    GROW_TOLERANCE * (p1 - p2).length(),
+                )
+            })
+            .collect()
+    }
+
+    /// True when saddle points continue the grid past one of its borders: then it is a
+    /// piece of a larger pattern (a tiled floor, a patterned shirt), not the board, whose
+    /// corners are surrounded by its white margin.
+    fn continues_beyond(&self, grid: &Grid) -> bool {
+        (0..4).any(|side| {
+            let preds = self.predict_line(grid, side);
+            let hits = preds
+                .iter()
+                .filter(|(p, tol)| {
+                    self.cands
+                        .iter()
+                        .any(|c| (c.pos - *p).length_squared() < tol * tol)
+                })
+                .count();
+            2 * hits > preds.len()
+        })
     }
 
     /// Step 5: numbers the grid as the physical board (not mirrored, rows downward) and
@@ -806,9 +842,17 @@ impl CornerDetector {
             return None;
         }
         let t = along / len;
-        let n = DVec2::new(-t.y, t.x);
-        let mid = (a + b) * 0.5;
-        let half_len = EDGE_PROFILE_REACH * len;
+        self.profile_across(
+            DVec2::new(-t.y, t.x),
+            (a + b) * 0.5,
+            EDGE_PROFILE_REACH * len,
+        )
+    }
+
+    /// The 10-90% measure on the profile through `mid` along unit `n`, `half_len` pixels
+    /// to either side.
+    fn profile_across(&self, n: DVec2, mid: DVec2, half_len: f64) -> Option<EdgeProfile> {
+        let t = DVec2::new(n.y, -n.x);
         let steps = (2.0 * half_len / EDGE_PROFILE_STEP_PX).ceil() as usize;
         let mut prof = Vec::with_capacity(steps + 1);
         for k in 0..=steps {
@@ -854,35 +898,54 @@ impl CornerDetector {
         })
     }
 
-    /// Blur of the whole image when no board was found: the same ratio over the
-    /// strongest edges (99th percentile gradient against the 1-99% grey range).
+    /// Blur of the whole image when no board was found: the 10-90% edge measure on the
+    /// strongest edges anywhere (gradient peaks of the smoothed image, at most one per
+    /// cell of a coarse grid), median over those with enough contrast.
     fn global_blur_estimate(&self) -> Option<f64> {
-        if self.gray.is_empty() {
+        let (w, h) = (self.w, self.h);
+        if w < 3 * GLOBAL_BLUR_CELL_PX || h < 3 * GLOBAL_BLUR_CELL_PX {
             return None;
         }
-        let mut grads: Vec<f32> = self
-            .gx
-            .iter()
-            .zip(&self.gy)
-            .map(|(a, b)| (a * a + b * b).sqrt())
-            .collect();
-        let mut greys = self.gray.clone();
-        let g99 = percentile(&mut grads, 0.99)? as f64;
-        let range = (percentile(&mut greys, 0.99)? - percentile(&mut greys, 0.01)?) as f64;
-        if g99 <= 0.0 || range < MIN_RING_CONTRAST {
+        let s = &self.smooth;
+        let mut picks: Vec<(f32, usize, usize)> = Vec::new();
+        for cy in (GLOBAL_BLUR_CELL_PX..h - GLOBAL_BLUR_CELL_PX).step_by(GLOBAL_BLUR_CELL_PX) {
+            for cx in (GLOBAL_BLUR_CELL_PX..w - GLOBAL_BLUR_CELL_PX).step_by(GLOBAL_BLUR_CELL_PX) {
+                let mut best = (0.0f32, 0, 0);
+                for y in cy..cy + GLOBAL_BLUR_CELL_PX {
+                    for x in cx..cx + GLOBAL_BLUR_CELL_PX {
+                        let i = y * w + x;
+                        let gx = s[i + 1] - s[i - 1];
+                        let gy = s[i + w] - s[i - w];
+                        let g = gx * gx + gy * gy;
+                        if g > best.0 {
+                            best = (g, x, y);
+                        }
+                    }
+                }
+                picks.push(best);
+            }
+        }
+        picks.sort_by(|a, b| b.0.total_cmp(&a.0));
+        picks.truncate(GLOBAL_BLUR_EDGES);
+        let mut sigmas = Vec::new();
+        for (g, x, y) in picks {
+            if g <= 0.0 {
+                continue;
+            }
+            let i = y * w + x;
+            let n = DVec2::new((s[i + 1] - s[i - 1]) as f64, (s[i + w] - s[i - w]) as f64)
+                .normalize_or_zero();
+            if let Some(e) =
+                self.profile_across(n, DVec2::new(x as f64, y as f64), GLOBAL_BLUR_REACH_PX)
+            {
+                sigmas.push(e.sigma_px);
+            }
+        }
+        if sigmas.len() < GLOBAL_BLUR_MIN_EDGES {
             return None;
         }
-        Some(range / (g99 * (std::f64::consts::TAU).sqrt()))
+        median(&mut sigmas)
     }
-}
-
-fn percentile(v: &mut [f32], q: f64) -> Option<f32> {
-    if v.is_empty() {
-        return None;
-    }
-    let k = ((v.len() - 1) as f64 * q).round() as usize;
-    let (_, x, _) = v.select_nth_unstable_by(k, |a, b| a.total_cmp(b));
-    Some(*x)
 }
 
 /// Median of a slice (reorders it).
@@ -1066,5 +1129,87 @@ mod tests {
         let img = render(&board, &p);
         let e = CornerDetector::new().detect(&img, &board).unwrap_err();
         assert!(matches!(e, DetectError::Partial { .. }), "{e}");
+    }
+
+    /// Clutter where the wall shows: grey rectangles and small checker patches (which
+    /// have saddle points of their own, and some have more than the board's corners).
+    fn add_clutter(img: &mut image::GrayImage, seed: u64) {
+        use super::super::render::{SplitMix64, WALL_LEVEL};
+        let mut rng = SplitMix64(seed);
+        let (w, h) = (img.width() as i64, img.height() as i64);
+        let mut layer = vec![WALL_LEVEL as u8; (w * h) as usize];
+        for _ in 0..40 {
+            let (x0, y0) = (
+                (rng.uniform() * w as f64) as i64,
+                (rng.uniform() * h as f64) as i64,
+            );
+            let (rw, rh) = (
+                8 + (rng.uniform() * 80.0) as i64,
+                8 + (rng.uniform() * 80.0) as i64,
+            );
+            let v = (rng.uniform() * 255.0) as u8;
+            let checker = rng.uniform() < 0.35;
+            let cs = 4 + (rng.uniform() * 10.0) as i64;
+            for y in y0.max(0)..(y0 + rh).min(h) {
+                for x in x0.max(0)..(x0 + rw).min(w) {
+                    let odd = ((x - x0) / cs + (y - y0) / cs) % 2 == 0;
+                    layer[(y * w + x) as usize] = if checker && odd { 255 - v } else { v };
+                }
+            }
+        }
+        for (p, l) in img.pixels_mut().zip(&layer) {
+            if p.0[0] == WALL_LEVEL as u8 {
+                p.0[0] = *l;
+            }
+            p.0[0] = (p.0[0] as f64 + 2.0 * rng.gaussian())
+                .round()
+                .clamp(0.0, 255.0) as u8;
+        }
+    }
+
+    #[test]
+    fn finds_the_board_among_checkered_clutter() {
+        let board = BoardSpec {
+            cols: 7,
+            rows: 5,
+            square_m: 0.04,
+        };
+        let clean = RenderOptions {
+            blur_sigma_px: 0.0,
+            noise_sigma: 0.0,
+            ..RenderOptions::default()
+        };
+        let mut r = BoardRenderer::new(small_camera());
+        let mut det = CornerDetector::new();
+        for (k, (tilt, spin)) in [(20.0, 10.0), (35.0, -20.0), (10.0, 95.0)]
+            .iter()
+            .enumerate()
+        {
+            let p = pose(*tilt, *spin, &board);
+            let mut img = r.render(&board, &p, Background::Wall, &clean);
+            add_clutter(&mut img, 11 + k as u64);
+            let d = det
+                .detect(&img, &board)
+                .unwrap_or_else(|e| panic!("pose {k}: {e}"));
+            let truth: Vec<DVec2> = true_corners(&small_camera(), &board, &p)
+                .into_iter()
+                .flatten()
+                .collect();
+            // Numbering aside, every detected corner must sit on a true corner.
+            let worst = d
+                .corners
+                .iter()
+                .map(|c| {
+                    truth
+                        .iter()
+                        .map(|t| (*t - *c).length())
+                        .fold(f64::INFINITY, f64::min)
+                })
+                .fold(0.0, f64::max);
+            assert!(
+                worst < 0.3,
+                "pose {k}: a corner is {worst} px from any true corner"
+            );
+        }
     }
 }
