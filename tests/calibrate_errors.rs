@@ -157,3 +157,77 @@ fn duplicates_and_empty_frames_are_named() {
     );
     assert!(text.contains("same as img_1.png"));
 }
+
+#[test]
+fn a_bad_view_is_flagged_as_outlier_and_dropped() {
+    let poses = rigs::handheld_poses(&board(), &camera(), 7, 21);
+    let mut v = views(&poses, &RenderOptions::default());
+    let clean = calibrate(&v).unwrap_or_else(|e| panic!("{e}"));
+    // Corrupt one view as a bent or moving board would: corners off by ~1.5 px.
+    let mut rng = fitstation::calibrate::render::SplitMix64(4);
+    if let Ok(d) = &mut v.views[3].detection {
+        for c in &mut d.corners {
+            c.x += 1.5 * rng.gaussian();
+            c.y += 1.5 * rng.gaussian();
+        }
+    }
+    let cal = calibrate(&v).unwrap_or_else(|e| panic!("{e}"));
+    println!("{cal}");
+    assert!(
+        matches!(cal.views[3].outcome, ViewOutcome::Outlier { rms_px } if rms_px > 1.0),
+        "{cal}"
+    );
+    assert_eq!(cal.used_views, 6);
+    // Dropping it restores the clean result.
+    assert!((cal.intrinsics.fx - clean.intrinsics.fx).abs() / clean.intrinsics.fx < 0.002);
+    assert!(cal.rms_px < 2.0 * clean.rms_px + 0.01);
+}
+
+#[test]
+fn live_session_accepts_new_sharp_views_only() {
+    use fitstation::calibrate::intrinsics::{FrameOutcome, LensSession};
+    let poses = rigs::handheld_poses(&board(), &camera(), 6, 31);
+    let mut r = BoardRenderer::new(camera());
+    let mut s = LensSession::new("front", board(), 640, 480);
+    let render = |r: &mut BoardRenderer, p: &Rigid, blur: f64| {
+        r.render(
+            &board(),
+            p,
+            Background::Wall,
+            &RenderOptions {
+                blur_sigma_px: blur,
+                ..RenderOptions::default()
+            },
+        )
+    };
+    let first = render(&mut r, &poses[0], 0.6);
+    assert_eq!(s.add_frame("f0", &first).outcome, FrameOutcome::Accepted);
+    // The same pose again, a blurred frame, an empty frame, a frame of another size.
+    assert!(
+        matches!(s.add_frame("f0b", &first).outcome, FrameOutcome::TooSimilar { ref to } if to == "f0")
+    );
+    assert!(matches!(
+        s.add_frame("blur", &render(&mut r, &poses[1], 4.0)).outcome,
+        FrameOutcome::Blurred { .. }
+    ));
+    let wall = image::GrayImage::from_pixel(640, 480, image::Luma([170]));
+    assert!(matches!(
+        s.add_frame("wall", &wall).outcome,
+        FrameOutcome::NotFound(_)
+    ));
+    assert!(matches!(
+        s.add_frame("small", &image::GrayImage::new(320, 240))
+            .outcome,
+        FrameOutcome::WrongSize { .. }
+    ));
+    for (i, p) in poses.iter().enumerate().skip(1) {
+        let fb = s.add_frame(&format!("f{i}"), &render(&mut r, p, 0.6));
+        assert_eq!(fb.outcome, FrameOutcome::Accepted, "pose {i}");
+        assert_eq!(fb.corners.len(), board().corner_count());
+    }
+    let cal = s
+        .calibrate(&mut |_: &Progress| {})
+        .unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(cal.used_views, 6);
+    assert!((cal.intrinsics.fx / camera().fx - 1.0).abs() < 0.005);
+}

@@ -406,6 +406,141 @@ pub fn calibrate_intrinsics(
     })
 }
 
+/// A live frame must move the board's corners by this much (mean, pixels) from every
+/// accepted view to count as a new view.
+pub const LIVE_MIN_CHANGE_PX: f64 = 25.0;
+
+/// What became of one live frame.
+#[derive(Debug, Clone, PartialEq)]
+pub enum FrameOutcome {
+    Accepted,
+    NotFound(DetectError),
+    Blurred {
+        sigma_px: f64,
+    },
+    /// Too close to an accepted view (named): move or tilt the board.
+    TooSimilar {
+        to: String,
+    },
+    WrongSize {
+        width: u32,
+        height: u32,
+    },
+}
+
+/// Feedback for the station UI after each live frame.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FrameFeedback {
+    pub outcome: FrameOutcome,
+    /// The board's corners in this frame (empty when not found), for an overlay.
+    pub corners: Vec<DVec2>,
+    pub accepted_views: usize,
+    /// Fraction of the image reached by accepted views' corners (4x4 cells).
+    pub coverage: f64,
+    /// Enough views and coverage to calibrate well.
+    pub ready: bool,
+}
+
+/// Collects live frames of one camera for the UI's calibration wizard; the same
+/// screening and calibration as the folder route.
+pub struct LensSession {
+    camera: String,
+    board: BoardSpec,
+    width: u32,
+    height: u32,
+    detector: CornerDetector,
+    views: Vec<ViewInput>,
+}
+
+impl LensSession {
+    pub fn new(camera: &str, board: BoardSpec, width: u32, height: u32) -> Self {
+        LensSession {
+            camera: camera.to_string(),
+            board,
+            width,
+            height,
+            detector: CornerDetector::new(),
+            views: Vec::new(),
+        }
+    }
+
+    /// Searches one grey frame (convert colour frames with `image::imageops::grayscale`)
+    /// and keeps it when it is a sharp, new view.
+    pub fn add_frame(&mut self, name: &str, frame: &image::GrayImage) -> FrameFeedback {
+        let (outcome, corners) = if (frame.width(), frame.height()) != (self.width, self.height) {
+            (
+                FrameOutcome::WrongSize {
+                    width: frame.width(),
+                    height: frame.height(),
+                },
+                Vec::new(),
+            )
+        } else {
+            match self.detector.detect(frame, &self.board) {
+                Err(e) => match e.blurred() {
+                    Some(sigma_px) => (FrameOutcome::Blurred { sigma_px }, Vec::new()),
+                    None => (FrameOutcome::NotFound(e), Vec::new()),
+                },
+                Ok(d) if d.blur_sigma_px > MAX_BLUR_SIGMA_PX => (
+                    FrameOutcome::Blurred {
+                        sigma_px: d.blur_sigma_px,
+                    },
+                    d.corners,
+                ),
+                Ok(d) => {
+                    let similar = self.views.iter().find(|v| {
+                        v.detection.as_ref().is_ok_and(|o| {
+                            mean_distance(&o.corners, &d.corners) < LIVE_MIN_CHANGE_PX
+                        })
+                    });
+                    match similar {
+                        Some(v) => (FrameOutcome::TooSimilar { to: v.name.clone() }, d.corners),
+                        None => {
+                            let corners = d.corners.clone();
+                            self.views.push(ViewInput {
+                                name: name.to_string(),
+                                detection: Ok(d),
+                            });
+                            (FrameOutcome::Accepted, corners)
+                        }
+                    }
+                }
+            }
+        };
+        let accepted: Vec<&Vec<DVec2>> = self
+            .views
+            .iter()
+            .filter_map(|v| v.detection.as_ref().ok().map(|d| &d.corners))
+            .collect();
+        let coverage = coverage(&accepted, self.width, self.height);
+        FrameFeedback {
+            outcome,
+            corners,
+            accepted_views: accepted.len(),
+            coverage,
+            ready: accepted.len() >= RECOMMENDED_VIEWS && coverage >= MIN_COVERAGE,
+        }
+    }
+
+    /// The accepted views.
+    pub fn views(&self) -> CameraViews {
+        CameraViews {
+            camera: self.camera.clone(),
+            width: self.width,
+            height: self.height,
+            views: self.views.clone(),
+        }
+    }
+
+    /// Calibrates from the accepted views ([`calibrate_intrinsics`]).
+    pub fn calibrate(
+        &self,
+        progress: &mut dyn FnMut(&Progress),
+    ) -> Result<IntrinsicsCalibration, CalibError> {
+        calibrate_intrinsics(&self.views(), &self.board, progress)
+    }
+}
+
 fn mean_distance(a: &[DVec2], b: &[DVec2]) -> f64 {
     if a.len() != b.len() || a.is_empty() {
         return f64::INFINITY;
