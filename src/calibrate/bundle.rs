@@ -267,10 +267,10 @@ fn build_normal_equations(
     a.iter_mut().for_each(|v| *v = 0.0);
     g.iter_mut().for_each(|v| *v = 0.0);
     let mut xi = x[..N_INTRINSIC].to_vec();
-    for v in 0..nv {
+    for (v, view) in views.iter().enumerate().take(nv) {
         let off = N_INTRINSIC + N_POSE * v;
         let mut xp = x[off..off + N_POSE].to_vec();
-        view_residuals(&xi, &xp, &views[v], buf);
+        view_residuals(&xi, &xp, view, buf);
         let m = buf.len();
         // Columns: 9 intrinsic then 6 pose, each of length m.
         jac.resize(N_INTRINSIC + N_POSE, Vec::new());
@@ -291,7 +291,7 @@ fn build_normal_equations(
             let orig = *target;
             *target = orig + h;
             let (pi, pp) = (xi.clone(), xp.clone());
-            view_residuals(&pi, &pp, &views[v], plus);
+            view_residuals(&pi, &pp, view, plus);
             let target = if c < N_INTRINSIC {
                 &mut xi[c]
             } else {
@@ -299,7 +299,7 @@ fn build_normal_equations(
             };
             *target = orig - h;
             let (mi, mp) = (xi.clone(), xp.clone());
-            view_residuals(&mi, &mp, &views[v], minus);
+            view_residuals(&mi, &mp, view, minus);
             let target = if c < N_INTRINSIC {
                 &mut xi[c]
             } else {

@@ -150,7 +150,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             let Some(h_mm) = args.board_height_mm else {
                 bail!("--board-height-mm is needed with the station images: measure the height of the board's lowest row of inner corners above the floor");
             };
-            if !(h_mm.is_finite() && h_mm >= 0.0 && h_mm < 3000.0) {
+            if !(0.0..3000.0).contains(&h_mm) {
                 bail!("--board-height-mm {h_mm} is not plausible (0-3000 mm)");
             }
             let placement = Placement { board, lowest_row_height_m: h_mm / 1000.0 };

@@ -365,7 +365,8 @@ pub fn calibrate_intrinsics(
     if active.len() < MIN_VIEWS {
         return Err(too_few(active.len(), &reports));
     }
-    if !(result.rms_px <= MAX_ACCEPTED_RMS_PX) {
+    // A NaN RMS (a diverged fit) is refused too.
+    if result.rms_px.is_nan() || result.rms_px > MAX_ACCEPTED_RMS_PX {
         return Err(CalibError::PoorFit {
             camera,
             rms_px: result.rms_px,

@@ -37,7 +37,8 @@ pub use checks::{check_station, StationChecks};
 pub use corners::{CornerDetector, DetectError, Detection};
 pub use extrinsics::{place_camera, CameraPlacement, Placement};
 pub use intrinsics::{
-    calibrate_intrinsics, detect_views, IntrinsicsCalibration, ViewOutcome, ViewReport,
+    calibrate_intrinsics, detect_views, FrameFeedback, FrameOutcome, IntrinsicsCalibration,
+    LensSession, ViewOutcome, ViewReport,
 };
 
 use std::path::PathBuf;
