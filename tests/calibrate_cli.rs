@@ -10,7 +10,7 @@ use fitstation::camera::{StationCalibration, View};
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
-const VIEWS: usize = 8;
+const VIEWS: usize = 6;
 const BOARD_HEIGHT_MM: f64 = 550.0;
 
 fn fitstation(args: &[&str]) -> Output {

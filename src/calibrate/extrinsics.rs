@@ -23,6 +23,9 @@ use super::CalibError;
 use crate::camera::{Intrinsics, Rigid, View};
 use glam::{DMat3, DVec2, DVec3};
 
+/// Rows of the placement board must advance within 45 degrees of straight down in
+/// each image (cosine): cameras are mounted upright, the board stands upright.
+pub const MIN_ROWS_DOWNWARD_COS: f64 = std::f64::consts::FRAC_1_SQRT_2;
 /// A camera whose placement-board RMS exceeds this is reported, pixels.
 pub const MAX_PLACEMENT_RMS_PX: f64 = 1.0;
 
@@ -85,6 +88,17 @@ pub fn place_camera(
             object.len()
         )));
     }
+    // The numbering assumes rows run horizontally (item 5): a board stood on its side
+    // would turn the whole station frame by 90 degrees.
+    let first_col = [corners[0], corners[(board.rows - 1) * board.cols]];
+    let row_dir = (first_col[1] - first_col[0]).normalize_or_zero();
+    if row_dir.y < MIN_ROWS_DOWNWARD_COS {
+        return Err(CalibError::Placement(format!(
+            "{} camera: the board's rows do not run horizontally (rows advance {:.0} deg away from straight down in the image): stand the board upright with its long side horizontal, as in calib/README.md",
+            view.name(),
+            row_dir.y.clamp(-1.0, 1.0).acos().to_degrees()
+        )));
+    }
     let normalised: Vec<DVec2> = corners
         .iter()
         .map(|p| intrinsics.undistort_pixel(*p))
@@ -140,6 +154,38 @@ pub fn place_camera(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_board_on_its_side_is_refused() {
+        let board = BoardSpec {
+            cols: 4,
+            rows: 3,
+            square_m: 0.1,
+        };
+        let p = Placement {
+            board,
+            lowest_row_height_m: 0.6,
+        };
+        let intr = Intrinsics {
+            width: 640,
+            height: 480,
+            fx: 500.0,
+            fy: 500.0,
+            cx: 320.0,
+            cy: 240.0,
+            dist: [0.0; 5],
+        };
+        // Corners whose rows advance to the right in the image.
+        let corners: Vec<DVec2> = (0..3)
+            .flat_map(|r| {
+                (0..4).map(move |c| DVec2::new(300.0 + 20.0 * r as f64, 200.0 - 20.0 * c as f64))
+            })
+            .collect();
+        let e = place_camera(View::Front, &intr, &corners, &p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("rows do not run horizontally"), "{e}");
+    }
 
     #[test]
     fn placement_frame_matches_the_procedure() {
