@@ -3,12 +3,12 @@
 //! the placement board at the mark. Accuracy targets: focal length within 0.5%, camera
 //! rotation within 0.2 degrees, camera position within 10 mm.
 
-use fitstation::calibrate::board::BoardSpec;
+use fitstation::calibrate::board::{BoardSpec, Target};
 use fitstation::calibrate::corners::CornerDetector;
 use fitstation::calibrate::extrinsics::{place_camera, Placement};
 use fitstation::calibrate::intrinsics::{calibrate_intrinsics, CameraViews, ViewInput};
 use fitstation::calibrate::linalg::rotation_angle_deg;
-use fitstation::calibrate::render::{synthetic_station, RenderOptions};
+use fitstation::calibrate::render::{synthetic_station, Pattern, RenderOptions};
 use fitstation::calibrate::{check_station, Progress};
 use fitstation::camera::{Camera, StationCalibration, View};
 
@@ -17,6 +17,8 @@ const ROTATION_TOL_DEG: f64 = 0.2;
 const POSITION_TOL_M: f64 = 0.010;
 /// Views per camera: enough for a stable calibration, few enough for a fast test.
 const VIEWS: usize = 8;
+/// Circle radius of the circle-grid target, as a fraction of the centre spacing.
+const CIRCLE_RADIUS_FRACTION: f64 = 0.3;
 
 fn board() -> BoardSpec {
     BoardSpec {
@@ -26,8 +28,13 @@ fn board() -> BoardSpec {
     }
 }
 
-fn views_of(camera: &str, imgs: &[image::GrayImage], board: &BoardSpec) -> CameraViews {
-    let mut det = CornerDetector::new();
+fn views_of(
+    camera: &str,
+    imgs: &[image::GrayImage],
+    board: &BoardSpec,
+    target: Target,
+) -> CameraViews {
+    let mut det = CornerDetector::for_target(target);
     let views = imgs
         .iter()
         .enumerate()
@@ -46,17 +53,28 @@ fn views_of(camera: &str, imgs: &[image::GrayImage], board: &BoardSpec) -> Camer
 
 #[test]
 fn rendered_station_is_recovered_within_tolerance() {
-    let board = board();
-    let height = 0.55;
-    let syn = synthetic_station(
-        &board,
-        VIEWS,
-        height,
-        &RenderOptions {
-            supersample: 3,
-            ..RenderOptions::default()
+    station_within_tolerance(Target::Chessboard, Pattern::Chessboard);
+}
+
+#[test]
+fn rendered_station_with_a_circle_grid_is_recovered_within_tolerance() {
+    station_within_tolerance(
+        Target::Circles,
+        Pattern::Circles {
+            radius_fraction: CIRCLE_RADIUS_FRACTION,
         },
     );
+}
+
+fn station_within_tolerance(target: Target, pattern: Pattern) {
+    let board = board();
+    let height = 0.55;
+    let opts = RenderOptions {
+        supersample: 3,
+        pattern,
+        ..RenderOptions::default()
+    };
+    let syn = synthetic_station(&board, VIEWS, height, &opts);
     let mut quiet = |_: &Progress| {};
     let placement = Placement {
         board,
@@ -68,10 +86,10 @@ fn rendered_station_is_recovered_within_tolerance() {
         (View::Side, &syn.side_views, &syn.station_side),
     ] {
         let truth = syn.truth.camera(view);
-        let views = views_of(view.name(), imgs, &board);
+        let views = views_of(view.name(), imgs, &board, target);
         let cal =
             calibrate_intrinsics(&views, &board, &mut quiet).unwrap_or_else(|e| panic!("{e}"));
-        println!("{cal}");
+        println!("[{}] {cal}", target.name());
         let i = cal.intrinsics;
         let t = truth.intrinsics;
         let fx_err = (i.fx - t.fx).abs() / t.fx;
@@ -91,7 +109,7 @@ fn rendered_station_is_recovered_within_tolerance() {
             view.name()
         );
 
-        let det = CornerDetector::new()
+        let det = CornerDetector::for_target(target)
             .detect(station_img, &board)
             .unwrap_or_else(|e| panic!("{} station image: {e}", view.name()));
         let placed =

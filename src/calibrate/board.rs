@@ -18,6 +18,26 @@ pub struct BoardSpec {
     pub square_m: f64,
 }
 
+/// What is printed on the calibration sheet.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Target {
+    /// A chessboard; the grid points are its inner corners.
+    #[default]
+    Chessboard,
+    /// A symmetric grid of dark circles on white; the grid points are the circle
+    /// centres, `square_m` apart.
+    Circles,
+}
+
+impl Target {
+    pub fn name(self) -> &'static str {
+        match self {
+            Target::Chessboard => "chessboard",
+            Target::Circles => "circles",
+        }
+    }
+}
+
 /// Fewest inner corners along either side of a usable board.
 pub const MIN_INNER_CORNERS: usize = 3;
 

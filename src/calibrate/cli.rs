@@ -5,7 +5,7 @@
 //!
 //! Units on the command line: millimetres (`--square-mm`, `--board-height-mm`).
 
-use super::board::BoardSpec;
+use super::board::{BoardSpec, Target};
 use super::checks::check_station;
 use super::corners::CornerDetector;
 use super::extrinsics::{place_camera, CameraPlacement, Placement};
@@ -31,9 +31,13 @@ pub struct CalibrateArgs {
     /// Inner corners of the chessboard, COLSxROWS (e.g. 9x6).
     #[arg(long)]
     pub board: Option<String>,
-    /// Side of one printed square in millimetres (measure it).
+    /// Side of one printed square (circle grid: centre spacing) in millimetres.
     #[arg(long)]
     pub square_mm: Option<f64>,
+    /// The printed target: a chessboard (COLSxROWS inner corners) or a symmetric grid
+    /// of dark circles (COLSxROWS circles).
+    #[arg(long, value_enum, default_value_t = TargetArg::Chessboard)]
+    pub target: TargetArg,
     /// Folder of the front camera's board photos (omit to keep the intrinsics of --out).
     #[arg(long)]
     pub front: Option<PathBuf>,
@@ -60,6 +64,22 @@ pub struct CalibrateArgs {
     pub force: bool,
 }
 
+/// `--target` values.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum TargetArg {
+    Chessboard,
+    Circles,
+}
+
+impl From<TargetArg> for Target {
+    fn from(t: TargetArg) -> Target {
+        match t {
+            TargetArg::Chessboard => Target::Chessboard,
+            TargetArg::Circles => Target::Circles,
+        }
+    }
+}
+
 #[derive(clap::Subcommand, Debug)]
 pub enum CalibrateAction {
     /// Print the operator checks of a station.yaml.
@@ -79,6 +99,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         bail!("usage: fitstation calibrate --board COLSxROWS --square-mm S --front DIR --side DIR [--station-front IMG --station-side IMG --board-height-mm H] --out station.yaml\n   or: fitstation calibrate check station.yaml");
     };
     let board = BoardSpec::parse(board_text, square_mm).map_err(anyhow::Error::msg)?;
+    let target = Target::from(args.target);
     let previous = if out.exists() {
         match StationCalibration::load(out) {
             Ok(p) => Some(p),
@@ -104,7 +125,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         Progress::Stage(s) => eprintln!("{s}"),
     };
     let total = Instant::now();
-    println!("Board: {board}");
+    println!("Board: {board} ({})", target.name());
 
     // 1. Intrinsics.
     let mut calibs: Vec<Option<IntrinsicsCalibration>> = Vec::new();
@@ -113,7 +134,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         match dir {
             Some(dir) => {
                 let t = Instant::now();
-                let views = detect_views(dir, view.name(), &board, &mut progress)?;
+                let views = detect_views(dir, view.name(), &board, target, &mut progress)?;
                 let detect_ms = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
                 let c = calibrate_intrinsics(&views, &board, &mut progress)?;
@@ -154,7 +175,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
                 bail!("--board-height-mm {h_mm} is not plausible (0-3000 mm)");
             }
             let placement = Placement { board, lowest_row_height_m: h_mm / 1000.0 };
-            let placed = place_both(&placement, [(sf.as_path(), front_intr), (ss.as_path(), side_intr)])?;
+            let placed = place_both(&placement, target, [(sf.as_path(), front_intr), (ss.as_path(), side_intr)])?;
             for p in &placed {
                 println!("{} camera placed: placement board RMS {:.3} px at {:.2} m", p.view.name(), p.rms_px, p.board_distance_m);
                 for w in &p.warnings {
@@ -205,6 +226,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     station
         .extra
         .push(("square_mm".into(), format!("{square_mm}")));
+    station.extra.push(("target".into(), target.name().into()));
     for (view, c) in [View::Front, View::Side].iter().zip(&calibs) {
         let (rms, n) = match c {
             Some(c) => (format!("{:.4}", c.rms_px), format!("{}", c.used_views)),
@@ -255,9 +277,10 @@ fn old_extra(prev: Option<&StationCalibration>, key: &str) -> Option<String> {
 /// Detects the placement board in both station images and places both cameras.
 fn place_both(
     placement: &Placement,
+    target: Target,
     inputs: [(&Path, Intrinsics); 2],
 ) -> Result<Vec<CameraPlacement>, CalibError> {
-    let mut detector = CornerDetector::new();
+    let mut detector = CornerDetector::for_target(target);
     let mut found = Vec::new();
     let mut errors = Vec::new();
     for ((path, intr), view) in inputs.iter().zip(View::BOTH) {

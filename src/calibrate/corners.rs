@@ -23,7 +23,7 @@
 //! [`CornerDetector`] keeps its scratch buffers between frames (no per-frame allocation
 //! once the image size is fixed).
 
-use super::board::BoardSpec;
+use super::board::{BoardSpec, Target};
 use glam::DVec2;
 
 /// Detection scales (Gaussian sigma, pixels), tried in order until the board is found.
@@ -78,12 +78,12 @@ pub struct Detection {
 pub enum DetectError {
     #[error("image is empty")]
     Empty,
-    #[error("no chessboard corners found ({candidates} corner-like points){}: is the whole board in view, large enough (squares 10 px or more) and evenly lit?", blur_hint(*blur_sigma_px))]
+    #[error("board not found ({candidates} corner-like points or dots){}: is the whole board in view, large enough (squares 10 px or more) and evenly lit?", blur_hint(*blur_sigma_px))]
     NotFound {
         candidates: usize,
         blur_sigma_px: Option<f64>,
     },
-    #[error("found only {found_cols}x{found_rows} of the board's {cols}x{rows} inner corners: the board is partly out of view, covered, or the --board size is wrong{}", blur_hint(*blur_sigma_px))]
+    #[error("found only {found_cols}x{found_rows} of the board's {cols}x{rows} grid points: the board is partly out of view, covered, or the --board size is wrong{}", blur_hint(*blur_sigma_px))]
     Partial {
         found_cols: usize,
         found_rows: usize,
@@ -129,6 +129,16 @@ struct EdgeProfile {
 const RISE_10_90_PER_SIGMA: f64 = 2.563;
 /// Edge profiles reach this fraction of the corner spacing to either side.
 const EDGE_PROFILE_REACH: f64 = 0.45;
+/// Circle grids: local-mean window (image size divided by this), how much darker than
+/// the local mean a blob pixel is (grey levels), smallest blob area (pixels), largest
+/// blob area (image area divided by this), accepted filled-ellipse ratio, and the
+/// padding of the weighted centroid box (pixels).
+const BLOB_WINDOW_DIVISOR: usize = 12;
+const BLOB_DARKER_THAN_MEAN: f64 = 10.0;
+const MIN_BLOB_AREA_PX: f64 = 12.0;
+const MAX_BLOB_AREA_DIVISOR: f64 = 50.0;
+const BLOB_FILL_RANGE: (f64, f64) = (0.8, 1.25);
+const BLOB_PAD_PX: usize = 2;
 /// Global blur estimate: grid cell (one edge sample per cell), edges used, fewest edges
 /// for an answer, and the reach of each profile, pixels.
 const GLOBAL_BLUR_CELL_PX: usize = 16;
@@ -160,6 +170,7 @@ pub enum SubpixMethod {
 #[derive(Default)]
 pub struct CornerDetector {
     method: SubpixMethod,
+    target: Target,
     w: usize,
     h: usize,
     gray: Vec<f32>,
@@ -170,6 +181,10 @@ pub struct CornerDetector {
     gy: Vec<f32>,
     cands: Vec<Candidate>,
     used: Vec<bool>,
+    /// Circle-grid scratch: integral image, component labels, flood-fill stack.
+    integral: Vec<f64>,
+    labels: Vec<u32>,
+    stack: Vec<usize>,
 }
 
 /// Grid under construction: `idx[j][i]` are candidate indices.
@@ -191,6 +206,14 @@ impl CornerDetector {
         Self::default()
     }
 
+    /// A detector for the given target (chessboard or circle grid).
+    pub fn for_target(target: Target) -> Self {
+        CornerDetector {
+            target,
+            ..Self::default()
+        }
+    }
+
     /// A detector with the given sub-pixel method.
     pub fn with_method(method: SubpixMethod) -> Self {
         CornerDetector {
@@ -199,12 +222,28 @@ impl CornerDetector {
         }
     }
 
+    /// Finds the target's grid points (chessboard inner corners or circle centres,
+    /// as chosen by [`CornerDetector::for_target`]) in a grey image, in OpenCV's order.
+    ///
+    /// # Errors
+    /// [`DetectError`] when no complete board is found.
+    pub fn detect(
+        &mut self,
+        image: &image::GrayImage,
+        board: &BoardSpec,
+    ) -> Result<Detection, DetectError> {
+        match self.target {
+            Target::Chessboard => self.detect_chessboard(image, board),
+            Target::Circles => self.detect_circles(image, board),
+        }
+    }
+
     /// Finds the board's inner corners in a grey image.
     ///
     /// # Errors
     /// [`DetectError`] when no complete board is found (with the largest partial grid
     /// or a blur estimate to tell the operator what to change).
-    pub fn detect(
+    pub fn detect_chessboard(
         &mut self,
         image: &image::GrayImage,
         board: &BoardSpec,
@@ -245,6 +284,222 @@ impl CornerDetector {
                 blur_sigma_px: self.global_blur_estimate(),
             }),
         }
+    }
+
+    /// Finds a symmetric grid of dark circles (`board.cols x board.rows` centres,
+    /// `board.square_m` apart) on a light sheet: dark blobs against the local mean
+    /// (integral image), connected components kept when their second moments describe
+    /// a filled ellipse, sub-pixel centres as grey-level-weighted centroids (unbiased
+    /// for any symmetric blur of an ellipse; the perspective shift of a circle's centre
+    /// is below 0.05 px for the test rigs), then the same grid growing and physical
+    /// numbering as the chessboard.
+    ///
+    /// # Errors
+    /// As [`CornerDetector::detect`].
+    pub fn detect_circles(
+        &mut self,
+        image: &image::GrayImage,
+        board: &BoardSpec,
+    ) -> Result<Detection, DetectError> {
+        self.load(image)?;
+        blur_f32(
+            &self.gray,
+            &mut self.smooth,
+            &mut self.tmp,
+            self.w,
+            self.h,
+            DETECTION_SCALES_PX[0],
+        );
+        self.find_blobs();
+        let contrast = 0.0;
+        match self.grow_board(board) {
+            Ok(points) => {
+                let mut min_spacing = f64::INFINITY;
+                for (i, a) in points.iter().enumerate() {
+                    for b in &points[i + 1..] {
+                        min_spacing = min_spacing.min((*a - *b).length());
+                    }
+                }
+                Ok(Detection {
+                    corners: points,
+                    blur_sigma_px: self.global_blur_estimate().unwrap_or(0.0),
+                    contrast,
+                    min_spacing_px: min_spacing,
+                })
+            }
+            Err(Some((a, b))) if a * b >= 6 => {
+                let (found_cols, found_rows) = if board.cols >= board.rows {
+                    (a.max(b), a.min(b))
+                } else {
+                    (a.min(b), a.max(b))
+                };
+                Err(DetectError::Partial {
+                    found_cols,
+                    found_rows,
+                    cols: board.cols,
+                    rows: board.rows,
+                    blur_sigma_px: self.global_blur_estimate(),
+                })
+            }
+            Err(_) => Err(DetectError::NotFound {
+                candidates: self.cands.len(),
+                blur_sigma_px: self.global_blur_estimate(),
+            }),
+        }
+    }
+
+    /// Dark elliptical blobs as grid candidates (directions from nearest neighbours).
+    fn find_blobs(&mut self) {
+        let (w, h) = (self.w, self.h);
+        let iw = w + 1;
+        self.integral.clear();
+        self.integral.resize(iw * (h + 1), 0.0);
+        for y in 0..h {
+            let mut row = 0.0;
+            for x in 0..w {
+                row += self.gray[y * w + x] as f64;
+                self.integral[(y + 1) * iw + x + 1] = self.integral[y * iw + x + 1] + row;
+            }
+        }
+        let r = (w.max(h) / BLOB_WINDOW_DIVISOR).max(4);
+        self.labels.clear();
+        self.labels.resize(w * h, 0);
+        let dark = |s: &Self, x: usize, y: usize| -> bool {
+            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(w));
+            let (y0, y1) = (y.saturating_sub(r), (y + r + 1).min(h));
+            let sum =
+                s.integral[y1 * iw + x1] - s.integral[y0 * iw + x1] - s.integral[y1 * iw + x0]
+                    + s.integral[y0 * iw + x0];
+            let mean = sum / ((x1 - x0) * (y1 - y0)) as f64;
+            (s.gray[y * w + x] as f64) < mean - BLOB_DARKER_THAN_MEAN
+        };
+        let mut blobs: Vec<(DVec2, f32)> = Vec::new();
+        let mut next_label = 0u32;
+        for start in 0..w * h {
+            if self.labels[start] != 0 || !dark(self, start % w, start / w) {
+                continue;
+            }
+            next_label += 1;
+            let label = next_label;
+            self.labels[start] = label;
+            self.stack.clear();
+            self.stack.push(start);
+            let (mut n, mut sx, mut sy, mut sxx, mut sxy, mut syy) =
+                (0.0f64, 0.0, 0.0, 0.0, 0.0, 0.0);
+            let (mut bx0, mut by0, mut bx1, mut by1) = (usize::MAX, usize::MAX, 0, 0);
+            let mut touches_border = false;
+            let mut fg = f64::INFINITY;
+            while let Some(i) = self.stack.pop() {
+                let (x, y) = (i % w, i / w);
+                let (fx, fy) = (x as f64, y as f64);
+                n += 1.0;
+                sx += fx;
+                sy += fy;
+                sxx += fx * fx;
+                sxy += fx * fy;
+                syy += fy * fy;
+                bx0 = bx0.min(x);
+                by0 = by0.min(y);
+                bx1 = bx1.max(x);
+                by1 = by1.max(y);
+                fg = fg.min(self.gray[i] as f64);
+                touches_border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
+                let mut visit = |j: usize, s: &mut Self| {
+                    if s.labels[j] == 0 && dark(s, j % w, j / w) {
+                        s.labels[j] = label;
+                        s.stack.push(j);
+                    }
+                };
+                if x > 0 {
+                    visit(i - 1, self);
+                }
+                if x + 1 < w {
+                    visit(i + 1, self);
+                }
+                if y > 0 {
+                    visit(i - w, self);
+                }
+                if y + 1 < h {
+                    visit(i + w, self);
+                }
+            }
+            if touches_border || n < MIN_BLOB_AREA_PX || n > (w * h) as f64 / MAX_BLOB_AREA_DIVISOR
+            {
+                continue;
+            }
+            let (mx, my) = (sx / n, sy / n);
+            let (cxx, cxy, cyy) = (sxx / n - mx * mx, sxy / n - mx * my, syy / n - my * my);
+            // A filled ellipse of area A has det(cov) = (A / 4 pi)^2.
+            let det = (cxx * cyy - cxy * cxy).max(0.0);
+            let fill = n / (4.0 * std::f64::consts::PI * det.sqrt()).max(1e-9);
+            if !(BLOB_FILL_RANGE.0..BLOB_FILL_RANGE.1).contains(&fill) {
+                continue;
+            }
+            // Weighted centroid over the padded box: weight = darkness between the sheet
+            // (box border mean) and the blob's darkest level.
+            let pad = BLOB_PAD_PX;
+            let (x0, y0) = (bx0.saturating_sub(pad), by0.saturating_sub(pad));
+            let (x1, y1) = ((bx1 + pad).min(w - 1), (by1 + pad).min(h - 1));
+            let mut border = (0.0f64, 0.0f64);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    if x == x0 || x == x1 || y == y0 || y == y1 {
+                        border.0 += self.gray[y * w + x] as f64;
+                        border.1 += 1.0;
+                    }
+                }
+            }
+            let bg = border.0 / border.1.max(1.0);
+            if bg - fg < MIN_RING_CONTRAST {
+                continue;
+            }
+            let (mut ws, mut wx, mut wy) = (0.0, 0.0, 0.0);
+            for y in y0..=y1 {
+                for x in x0..=x1 {
+                    let l = self.labels[y * w + x];
+                    if l != 0 && l != label {
+                        continue;
+                    }
+                    let wt = ((bg - self.gray[y * w + x] as f64) / (bg - fg)).clamp(0.0, 1.0);
+                    ws += wt;
+                    wx += wt * x as f64;
+                    wy += wt * y as f64;
+                }
+            }
+            if ws > 0.0 {
+                blobs.push((DVec2::new(wx / ws, wy / ws), n as f32));
+            }
+        }
+        // Grid directions from the nearest neighbours.
+        self.cands.clear();
+        let cos_par = NEIGHBOUR_ANGLE_DEG.to_radians().cos();
+        for (k, (p, area)) in blobs.iter().enumerate() {
+            let mut near: Vec<(f64, DVec2)> = blobs
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != k)
+                .map(|(_, (q, _))| ((*q - *p).length(), (*q - *p).normalize_or_zero()))
+                .collect();
+            near.sort_by(|a, b| a.0.total_cmp(&b.0));
+            let Some(&(_, dir_a)) = near.first() else {
+                continue;
+            };
+            let Some(&(_, dir_b)) = near
+                .iter()
+                .skip(1)
+                .find(|(_, d)| d.dot(dir_a).abs() < cos_par)
+            else {
+                continue;
+            };
+            self.cands.push(Candidate {
+                pos: *p,
+                response: *area,
+                dir_a,
+                dir_b,
+            });
+        }
+        self.used.clear();
+        self.used.resize(self.cands.len(), false);
     }
 
     fn load(&mut self, image: &image::GrayImage) -> Result<(), DetectError> {
@@ -1210,6 +1465,50 @@ mod tests {
                 worst < 0.3,
                 "pose {k}: a corner is {worst} px from any true corner"
             );
+        }
+    }
+
+    #[test]
+    fn finds_a_circle_grid_in_order() {
+        use super::super::render::Pattern;
+        let board = BoardSpec {
+            cols: 7,
+            rows: 5,
+            square_m: 0.04,
+        };
+        let opts = RenderOptions {
+            pattern: Pattern::Circles {
+                radius_fraction: 0.3,
+            },
+            ..RenderOptions::default()
+        };
+        let mut r = BoardRenderer::new(small_camera());
+        let mut det = CornerDetector::new();
+        for (tilt, spin) in [(0.0, 5.0), (30.0, -15.0), (40.0, 20.0)] {
+            let p = pose(tilt, spin, &board);
+            let img = r.render(&board, &p, Background::Wall, &opts);
+            let d = det
+                .detect_circles(&img, &board)
+                .unwrap_or_else(|e| panic!("tilt {tilt}: {e}"));
+            let truth: Vec<DVec2> = true_corners(&small_camera(), &board, &p)
+                .into_iter()
+                .flatten()
+                .collect();
+            let mut e: Vec<f64> = d
+                .corners
+                .iter()
+                .zip(&truth)
+                .map(|(a, b)| (*a - *b).length())
+                .collect();
+            let worst = e.iter().copied().fold(0.0, f64::max);
+            let med = median(&mut e).unwrap_or(f64::INFINITY);
+            println!("circles tilt {tilt}: median {med:.3} px, worst {worst:.3} px");
+            assert!(
+                med < 0.1 && worst < 0.3,
+                "tilt {tilt}: median {med} worst {worst}"
+            );
+            // A chessboard search on circles finds nothing.
+            assert!(det.detect(&img, &board).is_err());
         }
     }
 }

@@ -5,7 +5,7 @@
 //! Units: pixels; board in metres. The RMS reprojection error is OpenCV's:
 //! `sqrt(sum |projected - detected|² / number of corners)`.
 
-use super::board::BoardSpec;
+use super::board::{BoardSpec, Target};
 use super::bundle::{refine, BundleResult, IntrinsicsMode, ViewObservations, N_INTRINSIC};
 use super::corners::{median, CornerDetector, DetectError, Detection};
 use super::zhang::{closed_form, homography, pose_from_homography, StartMethod};
@@ -131,10 +131,11 @@ pub fn detect_views(
     dir: &Path,
     camera: &str,
     board: &BoardSpec,
+    target: Target,
     progress: &mut dyn FnMut(&Progress),
 ) -> Result<CameraViews, CalibError> {
     let files = image_files(dir, camera)?;
-    let mut detector = CornerDetector::new();
+    let mut detector = CornerDetector::for_target(target);
     let mut size: Option<(u32, u32, PathBuf)> = None;
     let mut views = Vec::with_capacity(files.len());
     for (k, path) in files.iter().enumerate() {
@@ -463,6 +464,12 @@ impl LensSession {
             detector: CornerDetector::new(),
             views: Vec::new(),
         }
+    }
+
+    /// The same session for another target (circle grid).
+    pub fn with_target(mut self, target: Target) -> Self {
+        self.detector = CornerDetector::for_target(target);
+        self
     }
 
     /// Searches one grey frame (convert colour frames with `image::imageops::grayscale`)

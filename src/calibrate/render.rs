@@ -45,6 +45,18 @@ pub struct RenderOptions {
     pub margin_squares: f64,
     /// Seed of the noise generator.
     pub seed: u64,
+    /// What is printed on the sheet.
+    pub pattern: Pattern,
+}
+
+/// The printed pattern.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Pattern {
+    /// Black and white squares (inner corners at the grid points).
+    #[default]
+    Chessboard,
+    /// Black circles centred on the grid points, radius as a fraction of the spacing.
+    Circles { radius_fraction: f64 },
 }
 
 impl Default for RenderOptions {
@@ -55,6 +67,7 @@ impl Default for RenderOptions {
             noise_sigma: 2.0,
             margin_squares: 0.6,
             seed: 1,
+            pattern: Pattern::Chessboard,
         }
     }
 }
@@ -70,6 +83,8 @@ pub struct BoardRenderer {
     classes: Vec<u64>,
     values: Vec<f64>,
     mixed: Vec<bool>,
+    /// Pattern of the render in progress.
+    pattern: Pattern,
 }
 
 impl BoardRenderer {
@@ -90,6 +105,7 @@ impl BoardRenderer {
             classes: vec![0; (w + 1) * (h + 1)],
             values: vec![0.0; (w + 1) * (h + 1)],
             mixed: vec![false; w * h],
+            pattern: Pattern::Chessboard,
         }
     }
 
@@ -118,6 +134,7 @@ impl BoardRenderer {
             } => Some(camera_from_station.inverse()),
             Background::Wall => None,
         };
+        self.pattern = opts.pattern;
         let s = opts.supersample.max(1) as usize;
         let inv = 1.0 / s as f64;
         let weight = 1.0 / (s * s) as f64;
@@ -228,19 +245,38 @@ impl BoardRenderer {
             let p = origin_b + dir_b * board_t;
             let i = (p.x / board.square_m).floor();
             let j = (p.y / board.square_m).floor();
-            let inside = i >= -1.0 && j >= -1.0 && i < board.cols as f64 && j < board.rows as f64;
-            if !inside {
-                (2, WHITE_LEVEL)
-            } else {
-                let id = 3 + (i + 2.0) as u64 * 4096 + (j + 2.0) as u64;
-                (
-                    id,
-                    if board.is_black(p.x, p.y) {
-                        BLACK_LEVEL
+            match self.pattern {
+                Pattern::Chessboard => {
+                    let inside =
+                        i >= -1.0 && j >= -1.0 && i < board.cols as f64 && j < board.rows as f64;
+                    if !inside {
+                        (2, WHITE_LEVEL)
                     } else {
-                        WHITE_LEVEL
-                    },
-                )
+                        let id = 3 + (i + 2.0) as u64 * 4096 + (j + 2.0) as u64;
+                        (
+                            id,
+                            if board.is_black(p.x, p.y) {
+                                BLACK_LEVEL
+                            } else {
+                                WHITE_LEVEL
+                            },
+                        )
+                    }
+                }
+                Pattern::Circles { radius_fraction } => {
+                    let (c, r) = (
+                        (p.x / board.square_m).round(),
+                        (p.y / board.square_m).round(),
+                    );
+                    let on_grid =
+                        c >= 0.0 && r >= 0.0 && c < board.cols as f64 && r < board.rows as f64;
+                    let d = DVec2::new(p.x - c * board.square_m, p.y - r * board.square_m).length();
+                    if on_grid && d <= radius_fraction * board.square_m {
+                        (3 + c as u64 * 4096 + r as u64, BLACK_LEVEL)
+                    } else {
+                        (2, WHITE_LEVEL)
+                    }
+                }
             }
         } else if floor_t.is_finite() {
             (1, FLOOR_LEVEL)
