@@ -14,12 +14,14 @@
 //! Needs python3 with cv2 and numpy; without them the test prints `SKIPPED` and passes,
 //! except when the environment variable `CI` is set.
 
-use fitstation::calibrate::board::BoardSpec;
+use fitstation::calibrate::board::{BoardSpec, Target};
 use fitstation::calibrate::corners::{median, CornerDetector, SubpixMethod};
 use fitstation::calibrate::intrinsics::{
     calibrate_intrinsics, CameraViews, IntrinsicsCalibration, ViewInput, ViewOutcome,
 };
-use fitstation::calibrate::render::{rigs, true_corners, Background, BoardRenderer, RenderOptions};
+use fitstation::calibrate::render::{
+    rigs, true_corners, Background, BoardRenderer, Pattern, RenderOptions,
+};
 use fitstation::calibrate::Progress;
 use glam::DVec2;
 use serde_json::Value;
@@ -275,5 +277,108 @@ fn corners_and_intrinsics_match_opencv() {
         pct(num(&cv["calib_sb"], "fx"), t.fx), pct(num(&cv["calib_sb"], "fy"), t.fy),
         num(&cv["calib_sb"], "cx") - t.cx, num(&cv["calib_sb"], "cy") - t.cy,
         pct(num(&cv["calib_subpix"], "fx"), t.fx), pct(num(&cv["calib_subpix"], "fy"), t.fy)
+    );
+}
+
+/// Circle centres against cv2.findCirclesGrid must agree to this median, pixels: both
+/// estimate centroids, OpenCV from thresholded contours, we from grey-level weights.
+const CIRCLE_MEDIAN_TOL_PX: f64 = 0.05;
+
+#[test]
+fn circle_grid_matches_opencv() {
+    if !have_cv2() {
+        return;
+    }
+    let board = BoardSpec {
+        cols: 9,
+        rows: 6,
+        square_m: 0.08,
+    };
+    let intr = rigs::landscape_intrinsics();
+    let dir = PathBuf::from(env!("CARGO_TARGET_TMPDIR")).join("calibrate_opencv_circles");
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let poses = rigs::handheld_poses(&board, &intr, VIEWS, 12);
+    let mut renderer = BoardRenderer::new(intr);
+    let mut det = CornerDetector::for_target(Target::Circles);
+    let (mut names, mut inputs, mut truths) = (Vec::new(), Vec::new(), Vec::new());
+    for (i, pose) in poses.iter().enumerate() {
+        let opts = RenderOptions {
+            supersample: 3,
+            seed: 60 + i as u64,
+            pattern: Pattern::Circles {
+                radius_fraction: 0.3,
+            },
+            ..RenderOptions::default()
+        };
+        let img = renderer.render(&board, pose, Background::Wall, &opts);
+        let path = dir.join(format!("circles_{i:02}.png"));
+        img.save(&path).expect("write png");
+        names.push(path.display().to_string());
+        truths.push(
+            true_corners(&intr, &board, pose)
+                .into_iter()
+                .flatten()
+                .collect::<Vec<_>>(),
+        );
+        inputs.push(ViewInput {
+            name: format!("circles_{i:02}"),
+            detection: det.detect(&img, &board),
+        });
+    }
+    let views = CameraViews {
+        camera: "circles".into(),
+        width: intr.width,
+        height: intr.height,
+        views: inputs,
+    };
+    let cal = calibrate_intrinsics(&views, &board, &mut |_: &Progress| {})
+        .unwrap_or_else(|e| panic!("{e}"));
+    let corners = used_corners(&views, &cal);
+    let ours = serde_json::json!({
+        "target": "circles", "cols": board.cols, "rows": board.rows, "square_m": board.square_m,
+        "width": intr.width, "height": intr.height, "images": names,
+        "corner_sets": { "default": corners.clone() },
+    });
+    let (ours_path, out_path) = (dir.join("ours.json"), dir.join("opencv.json"));
+    std::fs::write(&ours_path, ours.to_string()).expect("write json");
+    let script = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/opencv/calib_reference.py");
+    let run = Command::new("python3")
+        .arg(&script)
+        .arg(&ours_path)
+        .arg(&out_path)
+        .output()
+        .expect("run python3");
+    assert!(
+        run.status.success(),
+        "calib_reference.py failed: {}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let cv: Value =
+        serde_json::from_str(&std::fs::read_to_string(&out_path).expect("read")).expect("parse");
+    let mut d = floats(&cv["diffs"]["default"]);
+    let med = median(&mut d).unwrap_or(f64::NAN);
+    println!(
+        "circles: OpenCV findCirclesGrid found {} of {VIEWS}; median distance to truth: ours {:.4} px, OpenCV {:.4} px; ours vs OpenCV {med:.4} px over {} centres",
+        cv["found"],
+        truth_median(&corners, &truths),
+        truth_median(&cv["circle_centres"], &truths),
+        d.len()
+    );
+    assert!(
+        !d.is_empty() && med < CIRCLE_MEDIAN_TOL_PX,
+        "circle centres vs OpenCV: {med}"
+    );
+    intrinsics_close(
+        "circle grid vs calibrateCamera on findCirclesGrid centres",
+        &cal,
+        &cv["calib_circles"],
+    );
+    let t = intr;
+    println!(
+        "circles vs truth: ours fx {:+.3}% fy {:+.3}%; OpenCV fx {:+.3}% fy {:+.3}%",
+        100.0 * (cal.intrinsics.fx / t.fx - 1.0),
+        100.0 * (cal.intrinsics.fy / t.fy - 1.0),
+        100.0 * (num(&cv["calib_circles"], "fx") / t.fx - 1.0),
+        100.0 * (num(&cv["calib_circles"], "fy") / t.fy - 1.0)
     );
 }

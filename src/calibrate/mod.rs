@@ -1,6 +1,7 @@
 //! Calibration of the two orthogonal station cameras (issue 7).
 //!
-//! 1. Intrinsics per camera ([`intrinsics`]): chessboard corners ([`corners`]), Zhang's
+//! 1. Intrinsics per camera ([`intrinsics`]): chessboard corners or circle-grid centres
+//!    ([`corners`]), Zhang's
 //!    closed-form start ([`zhang`]), Levenberg-Marquardt over fx fy cx cy, OpenCV's k1 k2
 //!    p1 p2 k3 and every view's pose ([`bundle`]); per-view and overall RMS reprojection
 //!    error in pixels; outlier, blurred and duplicate views dropped with a reason.

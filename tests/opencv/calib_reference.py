@@ -40,6 +40,8 @@ def main():
     objp = np.zeros((rows * cols, 3), np.float32)
     objp[:, :2] = np.mgrid[0:cols, 0:rows].T.reshape(-1, 2) * square
     sets = ours["corner_sets"]
+    if ours.get("target") == "circles":
+        return circles(ours, objp, size, sets)
     out = {"opencv_version": cv2.__version__, "found_sb": 0, "found_classic": 0, "sb_corners": [],
            "subpix_corners": [], "diffs": {name: {"sb": [], "subpix": []} for name in sets}}
     obj_sb, pts_sb, obj_sp, pts_sp = [], [], [], []
@@ -78,6 +80,36 @@ def main():
         pts = [np.asarray(v, np.float32).reshape(-1, 1, 2) for v in views if v is not None]
         if len(pts) >= 3:
             out["calib_ours"][name] = calibrate([objp] * len(pts), pts, size)
+    json.dump(out, open(sys.argv[2], "w"), indent=1)
+
+
+def circles(ours, objp, size, sets):
+    """Symmetric circle grid: cv2.findCirclesGrid centres, diffs and calibrations."""
+    cols, rows = ours["cols"], ours["rows"]
+    out = {"opencv_version": cv2.__version__, "found": 0, "circle_centres": [],
+           "diffs": {name: [] for name in sets}}
+    obj, pts = [], []
+    for k, path in enumerate(ours["images"]):
+        gray = cv2.imread(path, cv2.IMREAD_GRAYSCALE)
+        if gray is None:
+            raise SystemExit(f"cannot read {path}")
+        ok, c = cv2.findCirclesGrid(gray, (cols, rows), flags=cv2.CALIB_CB_SYMMETRIC_GRID)
+        out["circle_centres"].append(c.reshape(-1, 2).tolist() if ok else None)
+        if not ok:
+            continue
+        out["found"] += 1
+        obj.append(objp)
+        pts.append(c.astype(np.float32))
+        for name, views in sets.items():
+            if views[k] is not None:
+                out["diffs"][name] += nearest_diffs(views[k], c)
+    if len(pts) >= 3:
+        out["calib_circles"] = calibrate(obj, pts, size)
+    out["calib_ours"] = {}
+    for name, views in sets.items():
+        p = [np.asarray(v, np.float32).reshape(-1, 1, 2) for v in views if v is not None]
+        if len(p) >= 3:
+            out["calib_ours"][name] = calibrate([objp] * len(p), p, size)
     json.dump(out, open(sys.argv[2], "w"), indent=1)
 
 
