@@ -1,10 +1,10 @@
 //! Calibration of the two orthogonal station cameras (issue 7).
 //!
 //! 1. Intrinsics per camera ([`intrinsics`]): chessboard corners or circle-grid centres
-//!    ([`corners`]), Zhang's
-//!    closed-form start ([`zhang`]), Levenberg-Marquardt over fx fy cx cy, OpenCV's k1 k2
-//!    p1 p2 k3 and every view's pose ([`bundle`]); per-view and overall RMS reprojection
-//!    error in pixels; outlier, blurred and duplicate views dropped with a reason.
+//!    ([`corners`]), Zhang's closed-form start ([`zhang`]), Levenberg-Marquardt over
+//!    fx fy cx cy, OpenCV's k1 k2 p1 p2 k3 and every view's pose ([`bundle`]); per-view
+//!    and overall RMS reprojection error in pixels; outlier, blurred and duplicate
+//!    views dropped with a reason. Live frames: [`intrinsics::LensSession`].
 //! 2. Extrinsics in the station frame ([`extrinsics`]) from the placement board standing
 //!    on the mark (procedure in `calib/README.md`), seen by both cameras.
 //! 3. Operator checks ([`checks`]): angle between the optical axes, camera heights and
