@@ -67,7 +67,8 @@ pub struct Detection {
     /// Blur of the board's edges: the Gaussian sigma (pixels) that a sharp step would
     /// need to show the measured ratio of contrast to steepest gradient.
     pub blur_sigma_px: f64,
-    /// Median grey-level contrast between black and white squares at the corners.
+    /// Median grey-level contrast between black and white squares along the board's
+    /// edges (circle grids: between the sheet and the dots, over all dot candidates).
     pub contrast: f64,
     /// Smallest distance between neighbouring corners, pixels.
     pub min_spacing_px: f64,
@@ -184,6 +185,8 @@ pub struct CornerDetector {
     /// Circle-grid scratch: integral image, component labels, flood-fill stack.
     integral: Vec<f64>,
     labels: Vec<u32>,
+    /// Sheet-to-dot contrast of each circle candidate (parallel to `cands`).
+    blob_contrast: Vec<f64>,
     stack: Vec<usize>,
 }
 
@@ -314,7 +317,6 @@ impl CornerDetector {
             DETECTION_SCALES_PX[0],
         );
         self.find_blobs();
-        let contrast = 0.0;
         match self.grow_board(board) {
             Ok(points) => {
                 let mut min_spacing = f64::INFINITY;
@@ -326,7 +328,10 @@ impl CornerDetector {
                 Ok(Detection {
                     corners: points,
                     blur_sigma_px: self.global_blur_estimate().unwrap_or(0.0),
-                    contrast,
+                    contrast: {
+                        let mut c = self.blob_contrast.clone();
+                        median(&mut c).unwrap_or(0.0)
+                    },
                     min_spacing_px: min_spacing,
                 })
             }
@@ -376,7 +381,7 @@ impl CornerDetector {
             let mean = sum / ((x1 - x0) * (y1 - y0)) as f64;
             (s.gray[y * w + x] as f64) < mean - BLOB_DARKER_THAN_MEAN
         };
-        let mut blobs: Vec<(DVec2, f32)> = Vec::new();
+        let mut blobs: Vec<(DVec2, f32, f64)> = Vec::new();
         let mut next_label = 0u32;
         for start in 0..w * h {
             if self.labels[start] != 0 || !dark(self, start % w, start / w) {
@@ -470,18 +475,19 @@ impl CornerDetector {
                 }
             }
             if ws > 0.0 {
-                blobs.push((DVec2::new(wx / ws, wy / ws), n as f32));
+                blobs.push((DVec2::new(wx / ws, wy / ws), n as f32, bg - fg));
             }
         }
         // Grid directions from the nearest neighbours.
         self.cands.clear();
         let cos_par = NEIGHBOUR_ANGLE_DEG.to_radians().cos();
-        for (k, (p, area)) in blobs.iter().enumerate() {
+        self.blob_contrast.clear();
+        for (k, (p, area, contrast)) in blobs.iter().enumerate() {
             let mut near: Vec<(f64, DVec2)> = blobs
                 .iter()
                 .enumerate()
                 .filter(|(j, _)| *j != k)
-                .map(|(_, (q, _))| ((*q - *p).length(), (*q - *p).normalize_or_zero()))
+                .map(|(_, (q, _, _))| ((*q - *p).length(), (*q - *p).normalize_or_zero()))
                 .collect();
             near.sort_by(|a, b| a.0.total_cmp(&b.0));
             let Some(&(_, dir_a)) = near.first() else {
@@ -500,6 +506,7 @@ impl CornerDetector {
                 dir_a,
                 dir_b,
             });
+            self.blob_contrast.push(*contrast);
         }
         self.used.clear();
         self.used.resize(self.cands.len(), false);
