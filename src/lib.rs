@@ -9,6 +9,7 @@
 //! wires them together with capture and the screen.
 
 pub mod body;
+pub mod calibrate;
 pub mod camera;
 pub mod contour;
 pub mod deform;

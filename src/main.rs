@@ -34,6 +34,8 @@ enum Command {
     },
     /// Print the version.
     Version,
+    /// Calibrate the two cameras (lens, then position at the mark) or check a station.yaml.
+    Calibrate(fitstation::calibrate::cli::CalibrateArgs),
 }
 
 #[derive(Subcommand)]
@@ -55,6 +57,7 @@ fn main() -> anyhow::Result<()> {
         Command::Eval(args) => fitstation::eval::run(args)?,
         Command::Bench { what: BenchCommand::Deform(args) } => fitstation::deform::bench::run(args)?,
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,
     }
     Ok(())
 }
