@@ -130,6 +130,15 @@ fn put_str(out: &mut Vec<u8>, s: &str) {
 impl LibraryData {
     /// Serialises into the file format (magic + zlib stream).
     pub fn encode(&self) -> Vec<u8> {
+        let b = self.encode_raw();
+        let mut enc = flate2::write::ZlibEncoder::new(MAGIC.to_vec(), flate2::Compression::best());
+        // Writing into a Vec cannot fail.
+        let _ = enc.write_all(&b);
+        enc.finish().unwrap_or_default()
+    }
+
+    /// The uncompressed stream (see the module docs).
+    pub fn encode_raw(&self) -> Vec<u8> {
         let mut b = Vec::new();
         b.extend_from_slice(&VERSION.to_le_bytes());
         put_str(
@@ -170,16 +179,7 @@ impl LibraryData {
                 }
             }
         }
-        let mut out = MAGIC.to_vec();
-        let mut enc = flate2::write::ZlibEncoder::new(
-            out.split_off(MAGIC.len()),
-            flate2::Compression::best(),
-        );
-        // Writing into a Vec cannot fail.
-        let _ = enc.write_all(&b);
-        let body = enc.finish().unwrap_or_default();
-        out.extend_from_slice(&body);
-        out
+        b
     }
 
     /// Parses the file format. `file` names the source in errors.
@@ -200,8 +200,13 @@ impl LibraryData {
             .take(MAX_DECOMPRESSED)
             .read_to_end(&mut raw)
             .map_err(|e| BodyError::format(file, format!("corrupt compressed stream: {e}")))?;
+        Self::decode_raw(&raw, file)
+    }
+
+    /// Parses the decompressed stream (see [`LibraryData::decode`]).
+    pub fn decode_raw(raw: &[u8], file: &Path) -> Result<LibraryData, BodyError> {
         let mut r = Reader {
-            b: &raw,
+            b: raw,
             pos: 0,
             file,
             ctx: String::from("header"),
@@ -501,6 +506,15 @@ impl ShapeLibrary {
             .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * QUANTUM_M)
             .collect();
         let mesh = TriMesh::new(base.clone(), data.triangles.clone());
+        mesh.validate().map_err(|m| BodyError::format(file, m))?;
+        if let Some(i) = &info {
+            if i.vertex_count != mesh.vertex_count() {
+                return Err(BodyError::format(
+                    file,
+                    "template sidecar is for another vertex count",
+                ));
+            }
+        }
         let mut lib = ShapeLibrary {
             meta: data.meta,
             base,
@@ -640,7 +654,11 @@ impl ShapeLibrary {
     }
 
     /// A deterministic, plausible adult from a seed: half women, half men (gender near
-    /// its end), ages 25..75, muscle/weight/height/proportions spread around the average.
+    /// its end), ages 25..75, muscle/weight/proportions spread around the average, the
+    /// height slider spread so that statures stay in a human range (about 1.47 to 1.92 m).
+    ///
+    /// Note: MakeHuman's height slider is extreme at its ends (about 1.22 m at 0 and 2.3 to
+    /// 2.45 m at 1 for an average build), so its full 0..1 range is not an adult range.
     pub fn sample_adult(seed: u64) -> ShapeParams {
         let mut rng = SplitMix64(seed ^ 0x5eed_b0d1_u64);
         let male = rng.uniform() < 0.5;
@@ -651,7 +669,16 @@ impl ShapeLibrary {
                 + (SAMPLE_AGE_YEARS.1 - SAMPLE_AGE_YEARS.0) * rng.uniform(),
             muscle: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
             weight: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
-            height: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
+            height: {
+                // MakeHuman's height slider is steep and asymmetric (about +1.4 m per unit
+                // above 0.5, +0.7 m below): spread it so statures stay human.
+                let z = rng.normal_in(0.0, 1.0, (-SAMPLE_HEIGHT_Z_MAX, SAMPLE_HEIGHT_Z_MAX));
+                0.5 + z * if z > 0.0 {
+                    SAMPLE_HEIGHT_SD.1
+                } else {
+                    SAMPLE_HEIGHT_SD.0
+                }
+            },
             proportions: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
         }
     }
@@ -663,6 +690,10 @@ const SAMPLE_GENDER_SPREAD: f64 = 0.2;
 const SAMPLE_AGE_YEARS: (f64, f64) = (25.0, 75.0);
 /// Standard deviation of the sampled sliders around 0.5.
 const SAMPLE_SD: f64 = 0.18;
+/// Deviation of the sampled height slider below and above 0.5 (about 6 cm of stature
+/// either way) and the truncation of its standard score.
+const SAMPLE_HEIGHT_SD: (f64, f64) = (0.08, 0.045);
+const SAMPLE_HEIGHT_Z_MAX: f64 = 2.2;
 /// Sampled sliders are truncated to this range (the extremes of MakeHuman's sliders are
 /// caricatures, not shoppers).
 const SAMPLE_SLIDER_RANGE: (f64, f64) = (0.1, 0.9);

@@ -704,13 +704,17 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
         if dir == DVec3::ZERO {
             return Err(BodyError::Prepare("degenerate forearm".into()));
         }
+        // Seed: the vertex nearest the arm axis' last sample (among the finger tips; the
+        // farthest vertex along the forearm direction could be a toe).
+        let end = arm_axes[k].last().copied().unwrap_or(wrist);
         let tip = (0..mesh.vertex_count())
-            .max_by(|&a, &b| {
-                (mesh.positions[a] - wrist)
-                    .dot(dir)
-                    .total_cmp(&(mesh.positions[b] - wrist).dot(dir))
+            .filter(|&v| (mesh.positions[v] - wrist).dot(dir) > 0.0)
+            .min_by(|&a, &b| {
+                (mesh.positions[a] - end)
+                    .length_squared()
+                    .total_cmp(&(mesh.positions[b] - end).length_squared())
             })
-            .unwrap_or(0);
+            .ok_or_else(|| BodyError::Prepare("no hand beyond the wrist".into()))?;
         hands[k] = component(&adj, mesh, tip, |p| (p - wrist).dot(dir) > 0.0);
     }
     // Feet: below the ankle joints, on each side.
