@@ -799,3 +799,54 @@ fn importer_turns_and_mirrors_figures_into_the_station_frame() {
     assert!(e.contains("x-young.target.gz"), "{e}");
     let _ = std::fs::remove_dir_all(&root);
 }
+
+#[test]
+fn prepare_works_across_the_library() {
+    let l = lib();
+    let mut extremes: Vec<ShapeParams> = (0..24).map(ShapeLibrary::sample_adult).collect();
+    for (g, w, m) in [
+        (0.0, 0.9, 0.2),
+        (1.0, 0.9, 0.9),
+        (0.0, 0.1, 0.1),
+        (1.0, 0.1, 0.9),
+    ] {
+        extremes.push(ShapeParams {
+            gender: g,
+            weight: w,
+            muscle: m,
+            ..Default::default()
+        });
+    }
+    for p in extremes {
+        let b = l.body(&p);
+        let i = prepare(&b).unwrap_or_else(|e| panic!("{p:?}: {e}"));
+        let (j, lm) = (&i.joints, &i.landmarks);
+        assert!(
+            lm.crotch_y < lm.armpit_y && lm.armpit_y < lm.acromion_y,
+            "{p:?}"
+        );
+        assert!(
+            j.knee_left.y < lm.crotch_y && j.elbow_left.x > j.shoulder_left.x,
+            "{p:?}"
+        );
+        assert!(j.hand_left.x > 0.0 && j.hand_right.x < 0.0, "{p:?}");
+        // The library's centring used the template's feet: still near the mark.
+        assert!(j.ankle_left.x > 0.0 && j.ankle_right.x < 0.0, "{p:?}");
+    }
+}
+
+#[test]
+fn load_from_folder_matches_the_embedded_library() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("templates");
+    let l = ShapeLibrary::load(&dir).unwrap();
+    assert_eq!(l.template().mesh, lib().template().mesh);
+    assert_eq!(l.template().info, lib().template().info);
+    let e = ShapeLibrary::load(Path::new("/nonexistent-dir"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("nonexistent-dir"), "{e}");
+    // Template::load reads the committed OBJ and its sidecar.
+    let t = Template::load(&dir.join(library::TEMPLATE_MESH_FILE)).unwrap();
+    assert_eq!(t.info, lib().template().info);
+    assert!((t.mesh.positions[0] - lib().template().mesh.positions[0]).length() < 1e-5);
+}
