@@ -491,7 +491,9 @@ impl ShapeLibrary {
             return Err(BodyError::format(file, "too many macro variables or knots"));
         }
         for v in &data.meta.variables {
-            if v.knots.windows(2).any(|w| !(w[1].value > w[0].value))
+            if v.knots
+                .windows(2)
+                .any(|w| w[1].value.partial_cmp(&w[0].value) != Some(std::cmp::Ordering::Greater))
                 || v.knots.iter().any(|k| !k.value.is_finite())
             {
                 return Err(BodyError::format(

@@ -733,7 +733,8 @@ fn synthetic_mpfb2(dir: &Path, xf: impl Fn(DVec3) -> DVec3) {
 #[test]
 fn importer_turns_and_mirrors_figures_into_the_station_frame() {
     let root = std::env::temp_dir().join(format!("fitstation-body-import-{}", std::process::id()));
-    let variants: [(&str, fn(DVec3) -> DVec3, bool, bool); 4] = [
+    type Variant = (&'static str, fn(DVec3) -> DVec3, bool, bool);
+    let variants: [Variant; 4] = [
         ("plain", |p| p, false, false),
         ("turned", |p| DVec3::new(-p.x, p.y, -p.z), true, false),
         ("mirrored", |p| DVec3::new(-p.x, p.y, p.z), false, true),
