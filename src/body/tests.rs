@@ -851,3 +851,56 @@ fn load_from_folder_matches_the_embedded_library() {
     assert_eq!(t.info, lib().template().info);
     assert!((t.mesh.positions[0] - lib().template().mesh.positions[0]).length() < 1e-5);
 }
+
+#[test]
+fn prepare_tolerates_small_holes_and_a_slight_turn() {
+    let t = lib().template();
+    // Punch holes: drop the triangles around a few vertices at the waist, the crotch, a
+    // knee and an upper arm (as a scan with missing patches would have).
+    let j = &t.info.joints;
+    let mut m = t.mesh.clone();
+    let near = |p: DVec3, c: DVec3| (p - c).length() < 0.012;
+    let centres = [
+        DVec3::new(j.waist.x + 0.1, j.waist.y, j.waist.z),
+        t.info.landmarks.crotch,
+        j.knee_left,
+        0.5 * (j.shoulder_left + j.elbow_left),
+    ];
+    // Move each centre onto the nearest surface vertex.
+    let centres: Vec<DVec3> = centres
+        .iter()
+        .map(|c| {
+            *m.positions
+                .iter()
+                .min_by(|a, b| (**a - *c).length().total_cmp(&(**b - *c).length()))
+                .unwrap()
+        })
+        .collect();
+    let before = m.triangle_count();
+    m.triangles.retain(|tri| {
+        !tri.iter()
+            .any(|&v| centres.iter().any(|c| near(m.positions[v as usize], *c)))
+    });
+    assert!(m.triangle_count() < before && m.boundary_edge_count() > 0);
+    let holed = prepare(&m).unwrap();
+    assert_infos_agree(&t.info, &holed, 0.02, "holed");
+    // A 3 degree turn about Y (a scan not quite square to the cameras).
+    let a = 3f64.to_radians();
+    let rot = |p: DVec3| {
+        DVec3::new(
+            p.x * a.cos() + p.z * a.sin(),
+            p.y,
+            -p.x * a.sin() + p.z * a.cos(),
+        )
+    };
+    let mut r = t.mesh.clone();
+    r.map_positions(rot);
+    let ri = prepare(&r).unwrap();
+    for ((name, p), (_, q)) in t.info.joints.named().into_iter().zip(ri.joints.named()) {
+        assert!(
+            (rot(p) - q).length() < 0.02,
+            "turned: {name} off by {}",
+            (rot(p) - q).length()
+        );
+    }
+}
