@@ -552,6 +552,17 @@ impl ShapeLibrary {
         &self.template
     }
 
+    /// A library body with its own analysis (a candidate template for the fit; the
+    /// [`super::prepare`] step takes tens of milliseconds).
+    ///
+    /// # Errors
+    /// When [`super::prepare`] cannot analyse the body (not seen within the sampled range).
+    pub fn template_for(&self, p: &ShapeParams) -> Result<Template, BodyError> {
+        let mesh = self.body(p);
+        let info = super::prepare(&mesh)?;
+        Ok(Template { mesh, info })
+    }
+
     /// Metadata of the library (source, macro variables).
     pub fn meta(&self) -> &LibraryMeta {
         &self.meta

@@ -819,8 +819,11 @@ fn prepare_works_across_the_library() {
         });
     }
     for p in extremes {
-        let b = l.body(&p);
-        let i = prepare(&b).unwrap_or_else(|e| panic!("{p:?}: {e}"));
+        let Template { mesh: b, info: i } =
+            l.template_for(&p).unwrap_or_else(|e| panic!("{p:?}: {e}"));
+        assert_eq!(b.vertex_count(), i.vertex_count);
+        // Soles on the floor, feet around the mark.
+        assert!(i.landmarks.sole_y.abs() < 1e-9, "{p:?}");
         let (j, lm) = (&i.joints, &i.landmarks);
         assert!(
             lm.crotch_y < lm.armpit_y && lm.armpit_y < lm.acromion_y,
