@@ -373,9 +373,14 @@ impl Reader<'_> {
 struct Target {
     factor: f64,
     keys: Vec<(usize, usize)>,
+    /// Vertex of each offset; empty for a dense target (one offset per vertex).
     indices: Vec<u32>,
     offsets: Vec<[f32; 3]>,
 }
+
+/// Targets touching more than this share of the vertices are expanded to dense arrays
+/// (no index per entry: less memory traffic per body).
+const DENSE_SHARE: f64 = 0.4;
 
 /// Which [`ShapeParams`] field drives a macro variable of the file (by its macro.json name).
 fn param_value(var: &str, p: &ShapeParams) -> Option<f64> {
@@ -470,16 +475,29 @@ impl ShapeLibrary {
                 }
             }
             let q = QUANTUM_M as f32;
-            targets.push(Target {
-                factor: t.factor,
-                keys,
-                indices: t.indices.clone(),
-                offsets: t
-                    .offsets
-                    .iter()
-                    .map(|o| [o[0] as f32 * q, o[1] as f32 * q, o[2] as f32 * q])
-                    .collect(),
-            });
+            let scaled = |o: &[i32; 3]| [o[0] as f32 * q, o[1] as f32 * q, o[2] as f32 * q];
+            let nv = data.base.len();
+            if t.indices.len() as f64 > DENSE_SHARE * nv as f64 {
+                let mut dense = vec![[0.0f32; 3]; nv];
+                for (&i, o) in t.indices.iter().zip(&t.offsets) {
+                    if let Some(d) = dense.get_mut(i as usize) {
+                        *d = scaled(o);
+                    }
+                }
+                targets.push(Target {
+                    factor: t.factor,
+                    keys,
+                    indices: Vec::new(),
+                    offsets: dense,
+                });
+            } else {
+                targets.push(Target {
+                    factor: t.factor,
+                    keys,
+                    indices: t.indices.clone(),
+                    offsets: t.offsets.iter().map(scaled).collect(),
+                });
+            }
         }
         if data.meta.variables.len() > MAX_VARIABLES
             || data
@@ -657,6 +675,12 @@ impl ShapeLibrary {
                 continue;
             }
             let wf = w as f32;
+            if t.indices.is_empty() {
+                for (v, o) in out.iter_mut().zip(&t.offsets) {
+                    *v += DVec3::new((o[0] * wf) as f64, (o[1] * wf) as f64, (o[2] * wf) as f64);
+                }
+                continue;
+            }
             for (&i, o) in t.indices.iter().zip(&t.offsets) {
                 // Indices were checked against the vertex count at decode.
                 if let Some(v) = out.get_mut(i as usize) {
