@@ -420,6 +420,20 @@ impl ShapeLibrary {
         ShapeLibrary::from_data(data, Some(info), &file)
     }
 
+    /// The embedded library, loaded once per process and shared (loading takes a few
+    /// hundred milliseconds; tests and tools that need it often should use this).
+    ///
+    /// # Errors
+    /// As [`ShapeLibrary::load_default`] (the message of the first failure).
+    pub fn shared() -> Result<&'static ShapeLibrary, BodyError> {
+        static SHARED: std::sync::OnceLock<Result<ShapeLibrary, String>> =
+            std::sync::OnceLock::new();
+        SHARED
+            .get_or_init(|| ShapeLibrary::load_default().map_err(|e| e.to_string()))
+            .as_ref()
+            .map_err(|m| BodyError::format(Path::new("templates"), m.clone()))
+    }
+
     /// Loads `dir/makehuman-adult.fsl` and its sidecar `dir/makehuman-adult.template.json`
     /// (prepared afresh when the sidecar is missing).
     ///

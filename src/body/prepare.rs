@@ -106,6 +106,14 @@ pub struct Joints {
 }
 
 impl Joints {
+    /// A joint by its field name (`"knee_left"`, `"head_top"`, ...).
+    pub fn get(&self, name: &str) -> Option<DVec3> {
+        self.named()
+            .into_iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, p)| p)
+    }
+
     /// All joints with their names, in a fixed order.
     pub fn named(&self) -> Vec<(&'static str, DVec3)> {
         vec![

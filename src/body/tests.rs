@@ -15,6 +15,16 @@ fn lib() -> &'static ShapeLibrary {
     LIB.get_or_init(|| ShapeLibrary::load_default().expect("embedded library loads"))
 }
 
+#[test]
+fn shared_library_is_the_default_one() {
+    let s = ShapeLibrary::shared().unwrap();
+    assert!(std::ptr::eq(s, ShapeLibrary::shared().unwrap()));
+    assert_eq!(s.template().mesh, lib().template().mesh);
+    let j = &lib().template().info.joints;
+    assert_eq!(j.get("knee_left"), Some(j.knee_left));
+    assert_eq!(j.get("no_such_joint"), None);
+}
+
 fn stature(m: &TriMesh) -> f64 {
     m.bounds().map(|b| b.size().y).unwrap_or(0.0)
 }
