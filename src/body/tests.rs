@@ -917,3 +917,24 @@ fn prepare_tolerates_small_holes_and_a_slight_turn() {
         );
     }
 }
+
+#[test]
+fn committed_decimated_template_agrees_with_the_library_template() {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("templates");
+    let t = Template::load(&dir.join("makehuman-adult-decimated.obj")).unwrap();
+    assert!(t.mesh.vertex_count() < lib().template().mesh.vertex_count() / 2);
+    assert_eq!(t.mesh.boundary_edge_count(), 0);
+    // Its committed sidecar is what prepare() gives, and agrees with the library's.
+    assert_infos_agree(
+        &prepare(&t.mesh).unwrap(),
+        &t.info,
+        1e-6,
+        "decimated sidecar",
+    );
+    assert_infos_agree(
+        &lib().template().info,
+        &t.info,
+        0.02,
+        "decimated vs library",
+    );
+}
