@@ -62,11 +62,12 @@ fn bench(c: &mut Criterion) {
     other.map_positions(|p| p * 1.01);
     let pair = [body.clone(), other];
     let mut measurer = Measurer::new();
+    let mut out = measurer.measure(&body).expect("bench body measures");
     let mut k = 0usize;
     c.bench_function(&format!("measure_per_frame_{name}"), |b| {
         b.iter(|| {
             k += 1;
-            measurer.measure(black_box(&pair[k % 2]))
+            measurer.measure_into(black_box(&pair[k % 2]), &mut out)
         })
     });
     let torso = LoopSelector::Torso { axis_x: 0.0 };

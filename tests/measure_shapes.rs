@@ -259,6 +259,13 @@ fn measurer_reuse_gives_the_same_result() {
     let other = measurer.measure(&b.mesh).expect("b");
     assert!((other.levels.crotch_m - first.levels.crotch_m).abs() < 2e-3);
     assert_eq!(measurer.measure(&a.mesh).expect("a again"), first);
+    let mut out = other.clone();
+    measurer.measure_into(&a.mesh, &mut out).expect("a into");
+    assert_eq!(out, first);
+    // A failed measurement leaves the previous result untouched.
+    let no_arms = stick_body(false, 0.04);
+    assert!(measurer.measure_into(&no_arms.mesh, &mut out).is_err());
+    assert_eq!(out, first);
     assert_eq!(fitstation::measure::measure(&a.mesh).expect("fresh"), first);
 }
 

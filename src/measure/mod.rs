@@ -490,6 +490,38 @@ impl Measurer {
     /// # Errors
     /// As [`measure`].
     pub fn measure(&mut self, mesh: &TriMesh) -> Result<Measurements, MeasureError> {
+        let mut out = Measurements {
+            stature_mm: 0.0,
+            chest_girth_mm: 0.0,
+            waist_girth_mm: 0.0,
+            hip_girth_mm: 0.0,
+            thigh_girth_left_mm: 0.0,
+            thigh_girth_right_mm: 0.0,
+            levels: MeasurementLevels {
+                crotch_m: 0.0,
+                armpit_m: 0.0,
+                chest_m: 0.0,
+                waist_m: 0.0,
+                hip_m: 0.0,
+                thigh_m: 0.0,
+            },
+            torso_profile: Vec::new(),
+        };
+        self.measure_into(mesh, &mut out)?;
+        Ok(out)
+    }
+
+    /// As [`Measurer::measure`], writing into `out` and reusing its profile's memory:
+    /// with a warm `Measurer` and `out`, a frame allocates nothing. On error `out` is
+    /// left unchanged.
+    ///
+    /// # Errors
+    /// As [`measure`].
+    pub fn measure_into(
+        &mut self,
+        mesh: &TriMesh,
+        out: &mut Measurements,
+    ) -> Result<(), MeasureError> {
         self.load(mesh)?;
         let (y_min, y_max) = (self.y_min, self.y_max);
         let stature = y_max - y_min;
@@ -662,13 +694,6 @@ impl Measurer {
         })?;
         let hip = self.refine(mesh, hip0, step, hip_band, &torso_selector, Objective::MinZ);
 
-        let torso_profile = profile
-            .iter()
-            .map(|s| GirthSample {
-                height_m: s.y,
-                girth_mm: s.hull.perimeter_m * MM_PER_M,
-            })
-            .collect();
         self.profile = profile;
 
         // Thighs just below the gluteal fold.
@@ -682,23 +707,27 @@ impl Measurer {
                 .perimeter_m;
         }
 
-        Ok(Measurements {
-            stature_mm: stature * MM_PER_M,
-            chest_girth_mm: chest.hull.perimeter_m * MM_PER_M,
-            waist_girth_mm: waist.hull.perimeter_m * MM_PER_M,
-            hip_girth_mm: hip.hull.perimeter_m * MM_PER_M,
-            thigh_girth_left_mm: thigh[0] * MM_PER_M,
-            thigh_girth_right_mm: thigh[1] * MM_PER_M,
-            levels: MeasurementLevels {
-                crotch_m: crotch,
-                armpit_m: armpit,
-                chest_m: chest.y,
-                waist_m: waist.y,
-                hip_m: hip.y,
-                thigh_m: thigh_y,
-            },
-            torso_profile,
-        })
+        out.stature_mm = stature * MM_PER_M;
+        out.chest_girth_mm = chest.hull.perimeter_m * MM_PER_M;
+        out.waist_girth_mm = waist.hull.perimeter_m * MM_PER_M;
+        out.hip_girth_mm = hip.hull.perimeter_m * MM_PER_M;
+        out.thigh_girth_left_mm = thigh[0] * MM_PER_M;
+        out.thigh_girth_right_mm = thigh[1] * MM_PER_M;
+        out.levels = MeasurementLevels {
+            crotch_m: crotch,
+            armpit_m: armpit,
+            chest_m: chest.y,
+            waist_m: waist.y,
+            hip_m: hip.y,
+            thigh_m: thigh_y,
+        };
+        out.torso_profile.clear();
+        out.torso_profile
+            .extend(self.profile.iter().map(|s| GirthSample {
+                height_m: s.y,
+                girth_mm: s.hull.perimeter_m * MM_PER_M,
+            }));
+        Ok(())
     }
 }
 
