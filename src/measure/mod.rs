@@ -89,8 +89,9 @@ pub const ARMPIT_SEARCH_TOP_OF_STATURE: f64 = 0.85;
 pub const COARSE_STEP_M: f64 = 0.02;
 /// Bisection tolerance of the crotch and armpit levels, metres.
 pub const LEVEL_TOLERANCE_M: f64 = 1e-4;
-/// How far below the armpit level the torso loop is read for the armpit x positions.
-pub const ARMPIT_CLEARANCE_M: f64 = 0.002;
+/// How far below a found level (crotch, armpit) its section is read: the legs just
+/// under the crotch, the torso's x-extent (armpit x positions) just under the armpit.
+pub const CLEARANCE_BELOW_LEVEL_M: f64 = 0.002;
 /// Chest band depth below the armpit, fraction of the crotch-armpit span.
 pub const CHEST_BAND_OF_SPAN: f64 = 0.25;
 /// Top of the chest band below the armpit, fraction of the span.
@@ -553,7 +554,7 @@ impl Measurer {
             }
             y = below;
         };
-        let leg_y = crotch - ARMPIT_CLEARANCE_M;
+        let leg_y = crotch - CLEARANCE_BELOW_LEVEL_M;
         self.cut(mesh, leg_y);
         for (side, ok) in [
             (
@@ -612,11 +613,11 @@ impl Measurer {
         let armpit_torso = self
             .hull_at(
                 mesh,
-                armpit - ARMPIT_CLEARANCE_M,
+                armpit - CLEARANCE_BELOW_LEVEL_M,
                 LoopSelector::Torso { axis_x },
             )
             .ok_or(MeasureError::NoTorsoAt {
-                y_m: armpit - ARMPIT_CLEARANCE_M,
+                y_m: armpit - CLEARANCE_BELOW_LEVEL_M,
                 what: "armpit",
             })?;
         let span = armpit - crotch;
