@@ -427,6 +427,25 @@ fn split_parts(mesh: &TriMesh) -> Vec<TriMesh> {
 }
 
 #[test]
+fn thighs_pressing_through_each_other_stay_two_legs() {
+    // A self-intersecting mesh, as a fit of heavy thighs can give: the leg prisms
+    // overlap by 1 cm across the body axis.
+    let b = stick_body(true, -0.01);
+    let m = measure(&b.mesh).expect("body with overlapping thighs");
+    assert!(
+        (m.levels.crotch_m - b.crotch).abs() < 1e-3,
+        "crotch {}",
+        m.levels.crotch_m
+    );
+    for g in [m.thigh_girth_left_mm, m.thigh_girth_right_mm] {
+        assert!(
+            (g - 2e3 * PI * b.leg_r).abs() < GIRTH_TOL_M * 1e3,
+            "thigh {g}"
+        );
+    }
+}
+
+#[test]
 fn shoulder_tops_beside_the_neck_are_not_armpits() {
     // Two small caps on the shoulders, separate from the neck: slices through them show
     // "two loops beside the torso" as arms do, but above them the torso narrows to the

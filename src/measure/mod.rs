@@ -14,12 +14,16 @@
 //!   splitting the cut into connected loops (torso, arms, legs are separate loops).
 //!
 //! # Landmark levels (found in this order)
-//! - **Body axis** x: the middle of the x-extent of the loop that crosses the bounding
-//!   box centre at [`TORSO_PROBE_OF_STATURE`] of the stature (always the abdomen on an
-//!   adult: crotch height is 0.44-0.50 of stature).
-//! - **Crotch** (`levels.crotch_m`): the highest level at which no section loop spans the
-//!   body axis, i.e. the lower body is two separate leg loops. Searched downward from the
-//!   probe in [`COARSE_STEP_M`] steps, then bisected to [`LEVEL_TOLERANCE_M`].
+//! - **Body axis** x: the middle of the x-extent of the central loop (below) through
+//!   the bounding box centre at [`TORSO_PROBE_OF_STATURE`] of the stature (always the
+//!   abdomen on an adult: crotch height is 0.44-0.50 of stature).
+//! - Loops are **central** (torso) when the body axis crosses the middle 80 % of their
+//!   x-extent ([`slicer::CENTRAL_MARGIN_OF_WIDTH`]), else **left** (+X) or **right** by
+//!   the middle of their extent: thighs that press through each other on a
+//!   self-intersecting mesh stay two legs.
+//! - **Crotch** (`levels.crotch_m`): the highest level without a central loop, i.e. the
+//!   lower body is two separate leg loops. Searched downward from the probe in
+//!   [`COARSE_STEP_M`] steps, then bisected to [`LEVEL_TOLERANCE_M`].
 //! - **Armpit** (`levels.armpit_m`): the top of the highest run of levels (between the
 //!   crotch and [`ARMPIT_SEARCH_TOP_OF_STATURE`] of the stature, below the ears) at which
 //!   both arms are loops separate from the torso, and above which the torso loop reaches
@@ -74,7 +78,7 @@ pub mod slicer;
 use crate::mesh::TriMesh;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
-use slicer::{HullStats, LevelIndex, SectionScratch};
+use slicer::{HullStats, LevelIndex, Placement, SectionScratch};
 
 pub use cli::{run, MeasureArgs};
 
@@ -168,7 +172,7 @@ pub enum MeasureError {
     EmptyMesh,
     #[error("invalid mesh: {0}")]
     InvalidMesh(String),
-    #[error("no torso: no section loop spans the body axis at y = {y_m:.3} m ({TORSO_PROBE_OF_STATURE} of the stature); not a standing body?")]
+    #[error("no torso: no central section loop about the body axis at y = {y_m:.3} m ({TORSO_PROBE_OF_STATURE} of the stature); not a standing body?")]
     NoTorso { y_m: f64 },
     #[error("no crotch: the lower body is not two separate legs anywhere between y = {bottom_m:.3} m and {top_m:.3} m; legs together or not a standing body?")]
     NoCrotch { bottom_m: f64, top_m: f64 },
@@ -201,14 +205,14 @@ impl std::fmt::Display for BodySide {
 pub enum LoopSelector {
     /// The hull of every loop of the section together.
     Whole,
-    /// The loop spanning the vertical plane x = `axis_x` (the largest by bounding box if
-    /// several do, e.g. a cavity inside the body).
+    /// The central loop about x = `axis_x` (see [`slicer::Placement`]; the largest by
+    /// bounding box if several are, e.g. a cavity inside the body).
     Torso { axis_x: f64 },
     /// As [`LoopSelector::Torso`], keeping only the part of the loop with x in
     /// [`x_min`, `x_max`]: cuts off an arm that touches the torso.
     TorsoClipped { axis_x: f64, x_min: f64, x_max: f64 },
-    /// The largest loop (by bounding box) lying entirely on `side` of x = `axis_x` (a
-    /// leg, below the crotch; left = +X).
+    /// The largest loop (by bounding box) placed on `side` of x = `axis_x` (a leg,
+    /// below the crotch; left = +X).
     Side { side: BodySide, axis_x: f64 },
 }
 
@@ -333,7 +337,7 @@ impl Measurer {
             .loops()
             .iter()
             .enumerate()
-            .filter(|(_, l)| l.straddles(axis_x))
+            .filter(|(_, l)| l.placement(axis_x) == Placement::Central)
             .max_by(|a, b| box_area(a.1).total_cmp(&box_area(b.1)))
             .map(|(i, _)| i)
     }
@@ -342,7 +346,10 @@ impl Measurer {
     /// the axis (legs below the crotch, arms between the hands and the armpits).
     fn loops_on_both_sides(&self, axis_x: f64) -> bool {
         let loops = self.section.loops();
-        loops.iter().any(|l| l.x_min > axis_x) && loops.iter().any(|l| l.x_max < axis_x)
+        loops.iter().any(|l| l.placement(axis_x) == Placement::Left)
+            && loops
+                .iter()
+                .any(|l| l.placement(axis_x) == Placement::Right)
     }
 
     /// With a torso loop and loops on both sides of it in the last section: the
@@ -352,12 +359,12 @@ impl Measurer {
         let loops = self.section.loops();
         let left = loops
             .iter()
-            .filter(|l| l.x_min > axis_x)
+            .filter(|l| l.placement(axis_x) == Placement::Left)
             .map(|l| l.x_min)
             .fold(f64::INFINITY, f64::min);
         let right = loops
             .iter()
-            .filter(|l| l.x_max < axis_x)
+            .filter(|l| l.placement(axis_x) == Placement::Right)
             .map(|l| l.x_max)
             .fold(f64::NEG_INFINITY, f64::max);
         (left.is_finite() && right.is_finite()).then_some((left, right))
@@ -382,8 +389,8 @@ impl Measurer {
             }
             LoopSelector::Side { side, axis_x } => {
                 let on_side = |l: &slicer::LoopInfo| match side {
-                    BodySide::Left => l.x_min > axis_x,
-                    BodySide::Right => l.x_max < axis_x,
+                    BodySide::Left => l.placement(axis_x) == Placement::Left,
+                    BodySide::Right => l.placement(axis_x) == Placement::Right,
                 };
                 let i = self
                     .section
@@ -559,11 +566,17 @@ impl Measurer {
         for (side, ok) in [
             (
                 BodySide::Left,
-                self.section.loops().iter().any(|l| l.x_min > axis_x),
+                self.section
+                    .loops()
+                    .iter()
+                    .any(|l| l.placement(axis_x) == Placement::Left),
             ),
             (
                 BodySide::Right,
-                self.section.loops().iter().any(|l| l.x_max < axis_x),
+                self.section
+                    .loops()
+                    .iter()
+                    .any(|l| l.placement(axis_x) == Placement::Right),
             ),
         ] {
             if !ok {

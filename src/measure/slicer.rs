@@ -217,11 +217,33 @@ pub struct LoopInfo {
     seg_end: u32,
 }
 
+/// A loop is central (the torso) when the body axis crosses the middle of its x-extent,
+/// leaving at least this fraction of the extent on either side. Legs that press into
+/// each other (self-intersecting meshes: a leg loop a few millimetres past the axis)
+/// stay legs; a torso with one arm joined to it (the axis at a quarter of the extent)
+/// stays the torso.
+pub const CENTRAL_MARGIN_OF_WIDTH: f64 = 0.1;
+
+/// Where a section loop lies relative to the body axis x = axis_x (left is +X).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    Central,
+    Left,
+    Right,
+}
+
 impl LoopInfo {
-    /// Whether the loop spans the vertical plane x = `axis_x` (the torso does; legs
-    /// and arms lie to one side of it).
-    pub fn straddles(&self, axis_x: f64) -> bool {
-        self.x_min <= axis_x && self.x_max >= axis_x
+    /// Where the loop lies relative to x = `axis_x`: central (see
+    /// [`CENTRAL_MARGIN_OF_WIDTH`]), else the side of its x-extent's middle.
+    pub fn placement(&self, axis_x: f64) -> Placement {
+        let margin = CENTRAL_MARGIN_OF_WIDTH * (self.x_max - self.x_min);
+        if self.x_min + margin <= axis_x && axis_x <= self.x_max - margin {
+            Placement::Central
+        } else if 0.5 * (self.x_min + self.x_max) > axis_x {
+            Placement::Left
+        } else {
+            Placement::Right
+        }
     }
 }
 
@@ -582,7 +604,11 @@ mod tests {
             .iter()
             .position(|l| l.x_min > 0.25)
             .expect("right-hand prism");
-        assert!(s.loops()[left].straddles(0.5) && !s.loops()[left].straddles(0.0));
+        assert_eq!(s.loops()[left].placement(0.5), Placement::Central);
+        assert_eq!(s.loops()[left].placement(0.0), Placement::Left);
+        assert_eq!(s.loops()[left].placement(0.9), Placement::Right);
+        // The axis 5 mm inside a 0.2 m wide loop: not central.
+        assert_eq!(s.loops()[left].placement(0.405), Placement::Left);
         // Clipping a disc of radius r to |x - c| <= r/2 leaves a hull of perimeter
         // 2 (r sqrt(3)) + 2 (r pi / 3) on the true circle; the 32-gon is close to it.
         let clipped = s
