@@ -47,15 +47,24 @@
 //!   by [`ARM_CUT_MARGIN_M`] (the tape runs under the arms, not around them).
 //! - **Waist girth** (5.3.10: natural waist, between the lowest rib and the top of the
 //!   hip bone): the least torso girth in [crotch + [`WAIST_BAND_OF_SPAN`].0 span,
-//!   crotch + [`WAIST_BAND_OF_SPAN`].1 span]. The iliac crest lies at about half the
-//!   crotch-armpit span and the lowest (10th) rib at about two thirds of it in adult
-//!   surveys; the band is widened on both sides so that it contains the natural waist
-//!   of short- and long-waisted people, and the minimum does the locating.
+//!   crotch + [`WAIST_BAND_OF_SPAN`].1 span]. Roughly (from typical adult proportions,
+//!   not a cited table), the iliac crest sits near half of the crotch-armpit span above
+//!   the crotch and the lowest rib near two thirds; the band is widened on both sides so
+//!   that it holds the natural waist of short- and long-waisted people, and the minimum
+//!   does the locating. When the least girth lies on the band's edge there is no
+//!   natural waist to find (a belly rounder than the ribs): the tape then goes at
+//!   [`WAIST_NO_NARROWING_OF_SPAN`], midway between iliac crest and lowest rib. On 24
+//!   MakeHuman adults (young/old, female/male, every muscle/weight extreme) the least
+//!   girth fell at 0.47-0.76 of the span, and on the band's top edge for two obese
+//!   bodies.
 //! - **Hip girth** (5.3.13: horizontal girth at the level of greatest buttock
-//!   prominence): the torso girth at the level, between the crotch and the waist, where
-//!   the torso reaches furthest back (least z). Not the maximum girth of that band: just
-//!   above the crotch the torso loop holds the tops of both thighs, whose hull is often
-//!   the widest section of all and is not what a tape round the buttocks reads.
+//!   prominence): the torso girth at the middle of the buttocks' bulge between the
+//!   crotch and the waist: the run of levels around the one where the torso reaches
+//!   furthest back (least z) whose back lies within [`HIP_PLATEAU_M`] of that point (on
+//!   a round seat the single deepest level wanders along a nearly flat back line). Not
+//!   the maximum girth of that band: just above the crotch the torso loop holds the
+//!   tops of both thighs, whose hull is often the widest section of all and is not
+//!   what a tape round the buttocks reads.
 //! - **Thigh girth, left and right** (5.3.20: horizontal girth of the thigh just below
 //!   the gluteal fold): the hull girth of each leg loop [`THIGH_DROP_OF_STATURE`] of
 //!   the stature below the crotch (the gluteal fold lies a few centimetres below the
@@ -104,6 +113,13 @@ pub const CHEST_TOP_OFFSET_OF_SPAN: f64 = 0.01;
 pub const ARM_CUT_MARGIN_M: f64 = 0.005;
 /// Waist band, fractions of the span above the crotch.
 pub const WAIST_BAND_OF_SPAN: (f64, f64) = (0.45, 0.8);
+/// Waist level, fraction of the span above the crotch, when the torso has no narrowing
+/// inside the waist band: midway between the iliac crest (~0.5) and the lowest rib
+/// (~0.67), the fallback tape position of the WHO waist protocol.
+pub const WAIST_NO_NARROWING_OF_SPAN: f64 = 0.58;
+/// Depth tolerance of the buttocks' bulge, metres: levels whose back is within this of
+/// the most posterior point belong to the bulge whose middle is the hip level.
+pub const HIP_PLATEAU_M: f64 = 0.003;
 /// Thigh level below the crotch, fraction of the stature.
 pub const THIGH_DROP_OF_STATURE: f64 = 0.03;
 /// Torso profile spacing, metres (the exact step divides the span evenly).
@@ -685,7 +701,7 @@ impl Measurer {
             y_m: chest_band.0,
             what: "chest",
         })?;
-        let waist = self.refine(
+        let mut waist = self.refine(
             mesh,
             waist0,
             step,
@@ -693,6 +709,18 @@ impl Measurer {
             &torso_selector,
             Objective::MinGirth,
         );
+        // No narrowing inside the band (the least girth is on its edge, as under an
+        // obese belly): take the level midway between iliac crest and lowest rib.
+        if (waist.y - waist_band.0).min(waist_band.1 - waist.y) <= REFINE_TOLERANCE_M {
+            let y = crotch + WAIST_NO_NARROWING_OF_SPAN * span;
+            let hull = self
+                .hull_at(mesh, y, torso_selector(y))
+                .ok_or(MeasureError::NoTorsoAt {
+                    y_m: y,
+                    what: "waist",
+                })?;
+            waist = Sample { y, hull };
+        }
         let chest = self.refine(
             mesh,
             chest0,
@@ -706,7 +734,38 @@ impl Measurer {
             y_m: crotch,
             what: "hip",
         })?;
-        let hip = self.refine(mesh, hip0, step, hip_band, &torso_selector, Objective::MinZ);
+        let deepest = self.refine(mesh, hip0, step, hip_band, &torso_selector, Objective::MinZ);
+        // The buttocks' bulge: the profile levels next to the deepest one that reach
+        // within HIP_PLATEAU_M of it. Its middle is the prominence; on a round or flat
+        // seat the deepest point alone wanders along the bulge.
+        let within = |s: &Sample| {
+            s.y >= hip_band.0
+                && s.y <= hip_band.1
+                && s.hull.z_min <= deepest.hull.z_min + HIP_PLATEAU_M
+        };
+        let i0 = profile
+            .iter()
+            .position(|s| s.y == hip0.y)
+            .unwrap_or_default();
+        let (mut lo, mut hi) = (i0, i0);
+        while lo > 0 && within(&profile[lo - 1]) {
+            lo -= 1;
+        }
+        while hi + 1 < profile.len() && within(&profile[hi + 1]) {
+            hi += 1;
+        }
+        let hip = if hi > lo {
+            let y = 0.5 * (profile[lo].y + profile[hi].y);
+            let hull = self
+                .hull_at(mesh, y, torso_selector(y))
+                .ok_or(MeasureError::NoTorsoAt {
+                    y_m: y,
+                    what: "hip",
+                })?;
+            Sample { y, hull }
+        } else {
+            deepest
+        };
 
         self.profile = profile;
 
