@@ -485,3 +485,47 @@ fn not_a_standing_body_is_a_clear_error() {
     assert!(matches!(measure(&nan), Err(MeasureError::InvalidMesh(_))));
     assert!(girth_at(&TriMesh::default(), 0.5, LoopSelector::Whole).is_none());
 }
+
+#[test]
+fn report_map_and_cli_on_the_stick_body() {
+    let b = stick_body(true, 0.04);
+    let m = measure(&b.mesh).expect("stick body");
+    let map = m.to_report_map();
+    let mut keys: Vec<&str> = map.keys().map(|k| k.as_str()).collect();
+    keys.sort_unstable();
+    assert_eq!(
+        keys,
+        [
+            "chest_girth",
+            "hip_girth",
+            "stature",
+            "thigh_girth_left",
+            "thigh_girth_right",
+            "waist_girth"
+        ]
+    );
+    assert_eq!(map["waist_girth"].as_f64(), Some(m.waist_girth_mm));
+    assert_eq!(map["stature"].as_f64(), Some(m.stature_mm));
+    // The command reads a mesh file and measures it; a cylinder is a clear error.
+    let dir = std::env::temp_dir().join(format!("fitstation_measure_cli_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let body_path = dir.join("stick.obj");
+    fitstation::mesh::io::write_obj(&body_path, &b.mesh).expect("write body");
+    for json in [false, true] {
+        fitstation::measure::run(fitstation::measure::MeasureArgs {
+            mesh: body_path.clone(),
+            json,
+        })
+        .expect("measure the stick body file");
+    }
+    let cyl_path = dir.join("cylinder.obj");
+    fitstation::mesh::io::write_obj(&cyl_path, &shapes::elliptic_cylinder(0.1, 0.1, 1.7, 4, 32))
+        .expect("write cylinder");
+    let err = fitstation::measure::run(fitstation::measure::MeasureArgs {
+        mesh: cyl_path,
+        json: false,
+    })
+    .expect_err("a cylinder is not a body");
+    assert!(format!("{err:#}").contains("no crotch"), "{err:#}");
+    std::fs::remove_dir_all(&dir).ok();
+}
