@@ -446,6 +446,52 @@ fn thighs_pressing_through_each_other_stay_two_legs() {
 }
 
 #[test]
+fn arms_joining_at_different_heights_give_the_lower_armpit() {
+    // The left arm joins the torso at the armpit (1.30 m), the right arm 4 cm higher:
+    // between the two, one prism holds the torso and the left arm.
+    let b = stick_body(true, 0.04);
+    let mut body = TriMesh::default();
+    for part in split_parts(&b.mesh) {
+        let lo = part
+            .positions
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min);
+        let x = part.positions.iter().map(|p| p.x).sum::<f64>() / part.positions.len() as f64;
+        if (lo - b.armpit).abs() < 1e-9 {
+            // Shoulders now start higher.
+            let (m, o) = ellipse_prism(0.30, 0.12, b.armpit + 0.04, 1.45, 0.0);
+            add(&mut body, m, o);
+        } else if (lo - 0.75).abs() < 1e-9 && x < 0.0 {
+            let (m, o) = ellipse_prism(0.04, 0.04, 0.75, b.armpit + 0.04, -0.25);
+            add(&mut body, m, o);
+        } else {
+            add(&mut body, part, DVec3::ZERO);
+        }
+    }
+    let (m, o) = ellipse_prism(0.23, 0.12, b.armpit, b.armpit + 0.04, 0.07);
+    add(&mut body, m, o);
+    let m = measure(&body).expect("body with uneven armpits");
+    assert!(
+        (m.levels.armpit_m - b.armpit).abs() < 1e-3,
+        "armpit {}",
+        m.levels.armpit_m
+    );
+    check_close(
+        "chest",
+        m.chest_girth_mm,
+        ramanujan(b.chest.0, b.chest.1) * 1e3,
+    );
+}
+
+fn check_close(what: &str, got_mm: f64, want_mm: f64) {
+    assert!(
+        (got_mm - want_mm).abs() < GIRTH_TOL_M * 1e3,
+        "{what}: {got_mm} mm vs {want_mm} mm"
+    );
+}
+
+#[test]
 fn shoulder_tops_beside_the_neck_are_not_armpits() {
     // Two small caps on the shoulders, separate from the neck: slices through them show
     // "two loops beside the torso" as arms do, but above them the torso narrows to the

@@ -347,7 +347,7 @@ impl Measurer {
     }
 
     /// Index of the torso loop of the last section: the largest (by bounding box, a
-    /// cheap stand-in for area) loop spanning x = `axis_x`.
+    /// cheap stand-in for area) central loop about x = `axis_x`.
     fn torso_loop(&self, axis_x: f64) -> Option<usize> {
         self.section
             .loops()
@@ -358,8 +358,8 @@ impl Measurer {
             .map(|(i, _)| i)
     }
 
-    /// Whether the last section has a loop entirely left and one entirely right of
-    /// the axis (legs below the crotch, arms between the hands and the armpits).
+    /// Whether the last section has a loop placed left and one placed right of the
+    /// axis (legs below the crotch, arms between the hands and the armpits).
     fn loops_on_both_sides(&self, axis_x: f64) -> bool {
         let loops = self.section.loops();
         loops.iter().any(|l| l.placement(axis_x) == Placement::Left)
@@ -602,9 +602,10 @@ impl Measurer {
 
         // Armpit: scanning down from the search top, the first level where both arms
         // are loops apart from the torso, just below a level where the torso loop
-        // reaches over where those arms are (they have joined it). Shoulder tops that
-        // slice as separate caps beside the neck fail the second test: above them the
-        // neck is narrower, not wider.
+        // reaches over where one of those arms is (it has joined; if the arms join at
+        // different heights, this is the lower armpit). Shoulder tops that slice as
+        // separate caps beside the neck fail the second test: above them the neck is
+        // narrower, not wider.
         let arms_apart =
             move |m: &Self| m.torso_loop(axis_x).is_some() && m.loops_on_both_sides(axis_x);
         let top = y_min + ARMPIT_SEARCH_TOP_OF_STATURE * stature;
@@ -622,7 +623,7 @@ impl Measurer {
             match self.arm_inner_edges(axis_x) {
                 Some((left_inner, right_inner)) => {
                     if let Some((y_above, x_min, x_max)) = above {
-                        if x_max >= left_inner && x_min <= right_inner {
+                        if x_max >= left_inner || x_min <= right_inner {
                             break (y, y_above);
                         }
                     }
