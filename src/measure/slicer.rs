@@ -267,6 +267,8 @@ pub struct SectionScratch {
     segs: Vec<[DVec2; 2]>,
     /// Triangle of each segment and the two triangle edges it crosses.
     seg_tri: Vec<(u32, [u8; 2])>,
+    /// Which ends of each segment it lists for hulls (each crossing point once).
+    owned: Vec<[bool; 2]>,
     /// Per mesh triangle: the segment it gave in the section numbered `stamp[t]`.
     seg_of_tri: Vec<u32>,
     stamp: Vec<u32>,
@@ -362,9 +364,11 @@ impl SectionScratch {
         let n = self.segs.len();
         self.parent.clear();
         self.parent.extend(0..n as u32);
+        self.owned.clear();
         for s in 0..n {
             let (t, edges) = self.seg_tri[s];
-            for e in edges {
+            let mut owned = [true; 2];
+            for (k, e) in edges.into_iter().enumerate() {
                 let nb = index
                     .neighbours
                     .get(t as usize)
@@ -372,6 +376,9 @@ impl SectionScratch {
                 if nb == NO_NEIGHBOUR || self.stamp[nb as usize] != self.epoch {
                     continue;
                 }
+                // The crossing point is shared with the neighbour: one of the two
+                // segments lists it for the hull.
+                owned[k] = nb > t;
                 let other = self.seg_of_tri[nb as usize];
                 let (ra, rb) = (
                     find(&mut self.parent, s as u32),
@@ -381,6 +388,7 @@ impl SectionScratch {
                     self.parent[ra as usize] = rb;
                 }
             }
+            self.owned.push(owned);
         }
         // Label loops 0..L and group segments by loop (counting sort).
         self.label.clear();
@@ -447,8 +455,13 @@ impl SectionScratch {
             let [a, b] = self.segs[s as usize];
             match clip_x {
                 None => {
-                    self.points.push(a);
-                    self.points.push(b);
+                    let owned = self.owned[s as usize];
+                    if owned[0] {
+                        self.points.push(a);
+                    }
+                    if owned[1] {
+                        self.points.push(b);
+                    }
                 }
                 Some((x0, x1)) => {
                     if let Some((p, q)) = clip_segment_x(a, b, x0, x1) {
