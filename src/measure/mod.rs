@@ -17,7 +17,7 @@
 //! - **Body axis** x: the middle of the x-extent of the central loop (below) through
 //!   the bounding box centre at [`TORSO_PROBE_OF_STATURE`] of the stature (always the
 //!   abdomen on an adult: crotch height is 0.44-0.50 of stature).
-//! - Loops are **central** (torso) when the body axis crosses the middle 80 % of their
+//! - Loops are **central** (torso) when the body axis crosses the middle 60 % of their
 //!   x-extent ([`slicer::CENTRAL_MARGIN_OF_WIDTH`]), else **left** (+X) or **right** by
 //!   the middle of their extent: thighs that press through each other on a
 //!   self-intersecting mesh stay two legs.

@@ -218,11 +218,11 @@ pub struct LoopInfo {
 }
 
 /// A loop is central (the torso) when the body axis crosses the middle of its x-extent,
-/// leaving at least this fraction of the extent on either side. Legs that press into
-/// each other (self-intersecting meshes: a leg loop a few millimetres past the axis)
-/// stay legs; a torso with one arm joined to it (the axis at a quarter of the extent)
-/// stays the torso.
-pub const CENTRAL_MARGIN_OF_WIDTH: f64 = 0.1;
+/// leaving at least this fraction of the extent on either side. Thighs that press into
+/// each other (a self-intersecting fit: each leg loop reaches past the axis) stay legs
+/// up to an overlap of 40 % of a thigh's width; a torso with one arm joined to it (the
+/// axis at a quarter to a third of the extent) stays the torso.
+pub const CENTRAL_MARGIN_OF_WIDTH: f64 = 0.2;
 
 /// Where a section loop lies relative to the body axis x = axis_x (left is +X).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -620,8 +620,9 @@ mod tests {
         assert_eq!(s.loops()[left].placement(0.5), Placement::Central);
         assert_eq!(s.loops()[left].placement(0.0), Placement::Left);
         assert_eq!(s.loops()[left].placement(0.9), Placement::Right);
-        // The axis 5 mm inside a 0.2 m wide loop: not central.
-        assert_eq!(s.loops()[left].placement(0.405), Placement::Left);
+        // The axis 3 cm inside a 0.2 m wide loop: not central.
+        assert_eq!(s.loops()[left].placement(0.43), Placement::Left);
+        assert_eq!(s.loops()[left].placement(0.45), Placement::Central);
         // Clipping a disc of radius r to |x - c| <= r/2 leaves a hull of perimeter
         // 2 (r sqrt(3)) + 2 (r pi / 3) on the true circle; the 32-gon is close to it.
         let clipped = s
