@@ -55,8 +55,8 @@
 //!   natural waist to find (a belly rounder than the ribs): the tape then goes at
 //!   [`WAIST_NO_NARROWING_OF_SPAN`], midway between iliac crest and lowest rib. On 24
 //!   MakeHuman adults (young/old, female/male, every muscle/weight extreme) the least
-//!   girth fell at 0.47-0.76 of the span, and on the band's top edge for two obese
-//!   bodies.
+//!   girth fell between 0.47 and 0.80 of the span; only the most obese reached the
+//!   band's top, under the ribs.
 //! - **Hip girth** (5.3.13: horizontal girth at the level of greatest buttock
 //!   prominence): the torso girth at the middle of the buttocks' bulge between the
 //!   crotch and the waist: the run of levels around the one where the torso reaches
