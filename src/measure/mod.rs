@@ -232,13 +232,28 @@ pub enum LoopSelector {
     Side { side: BodySide, axis_x: f64 },
 }
 
+thread_local! {
+    /// The [`Measurer`] behind the free functions: one per thread, so that calling
+    /// [`measure`] every frame (or [`girth_at`] at many levels of one mesh) reuses the
+    /// edge table, the height index and the buffers, as an owned `Measurer` would.
+    static THREAD_MEASURER: std::cell::RefCell<Measurer> = std::cell::RefCell::new(Measurer::new());
+}
+
+fn with_thread_measurer<R>(f: impl FnOnce(&mut Measurer) -> R) -> R {
+    THREAD_MEASURER.with(|m| match m.try_borrow_mut() {
+        Ok(mut m) => f(&mut m),
+        // Only reachable if `f` itself calls back in here: use a fresh one.
+        Err(_) => f(&mut Measurer::new()),
+    })
+}
+
 /// Tape girth (metres) of the section of `mesh` at height `y` around the loop(s) chosen
 /// by `selector`; `None` when no such loop exists or the mesh is invalid.
 ///
-/// Convenience for one-off use: it builds a [`Measurer`] (O(#F)); reuse a `Measurer`
-/// for many levels of the same mesh.
+/// Uses this thread's cached [`Measurer`]: the first call on a mesh builds its height
+/// index (O(#F)), further calls on the same mesh only cut one section.
 pub fn girth_at(mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
-    Measurer::default().girth_at(mesh, y, selector)
+    with_thread_measurer(|m| m.girth_at(mesh, y, selector))
 }
 
 /// Measures a standing body (see the module docs).
@@ -246,8 +261,11 @@ pub fn girth_at(mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
 /// # Errors
 /// [`MeasureError`] when the mesh is empty or invalid, or is not a standing body in an
 /// A-pose (no torso, no gap between the legs, arms never apart from the torso).
+///
+/// Uses this thread's cached [`Measurer`] (see [`girth_at`]); own a `Measurer` and call
+/// [`Measurer::measure_into`] to also reuse the result's memory.
 pub fn measure(mesh: &TriMesh) -> Result<Measurements, MeasureError> {
-    Measurer::default().measure(mesh)
+    with_thread_measurer(|m| m.measure(mesh))
 }
 
 /// A girth at one level, with the loop's extent (internal to the level searches).
