@@ -77,9 +77,10 @@
 //! [`REFINE_TOLERANCE_M`].
 //!
 //! # Speed
-//! A [`Measurer`] keeps a height index of the triangles and all section buffers between
-//! calls: each section visits only the triangles near its level, and after the first
-//! call nothing but the result's profile is allocated.
+//! A [`Measurer`] keeps the triangles' edge table (while the topology stays), a height
+//! index of the triangles and all section buffers between calls: each section visits
+//! only the triangles near its level, and [`Measurer::measure_into`] allocates nothing
+//! once warm. The free [`measure`] and [`girth_at`] use one such `Measurer` per thread.
 
 pub mod cli;
 pub mod slicer;
