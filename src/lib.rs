@@ -8,6 +8,8 @@
 //! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
 //! wires them together with capture and the screen.
 
+pub mod app;
 pub mod camera;
+pub mod capture;
 pub mod mesh;
 pub mod pipeline;
