@@ -104,6 +104,8 @@ pub fn run(
         ..Default::default()
     };
     let mut native = native;
+    // Dithering costs a little per pixel on software renderers and is invisible here.
+    native.dithering = false;
     // The screen refreshes when snapshots arrive; waiting for vsync would only add latency.
     native.wgpu_options.surface.present_mode = wgpu::PresentMode::AutoNoVsync;
     let summary = Arc::new(Mutex::new(RunSummary::default()));
@@ -202,7 +204,7 @@ impl std::fmt::Display for RunSummary {
             )?;
         }
         for (s, med, p95) in &self.ui_timings {
-            writeln!(f, "ui stage {s}: median {med:.2} ms, p95 {p95:.2} ms")?;
+            writeln!(f, "stage {s}: median {med:.2} ms, p95 {p95:.2} ms")?;
         }
         if let Some(p) = &self.screenshot {
             writeln!(f, "screenshot: {}", p.display())?;
@@ -593,8 +595,14 @@ impl StationApp {
                     }
                     ui.end_row();
                 }
-                for (stage, sum) in self.ui_stats.summary() {
-                    ui.label(format!("screen {stage}"));
+                let threads = self.runner.controls.thread_stats().summary();
+                let screen = self
+                    .ui_stats
+                    .summary()
+                    .into_iter()
+                    .map(|(n, v)| (format!("screen {n}"), v));
+                for (stage, sum) in threads.into_iter().chain(screen) {
+                    ui.label(stage);
                     ui.label("");
                     ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
                     ui.end_row();
@@ -822,12 +830,14 @@ impl StationApp {
             s.recent_snapshot_fps = self.snap_meter.rate(now);
             s.recent_ui_fps = self.ui_meter.rate(now);
             s.cpu_seconds = process_cpu_seconds();
-            s.ui_timings = self
-                .ui_stats
-                .summary()
-                .into_iter()
-                .map(|(n, v)| (n, v.median, v.p95))
-                .collect();
+            let mut all = self.runner.controls.thread_stats().summary();
+            all.extend(
+                self.ui_stats
+                    .summary()
+                    .into_iter()
+                    .map(|(n, v)| (format!("screen {n}"), v)),
+            );
+            s.ui_timings = all.into_iter().map(|(n, v)| (n, v.median, v.p95)).collect();
         }
     }
 
@@ -1240,6 +1250,22 @@ pub struct DemoUiArgs {
     /// Start with the operator tools open.
     #[arg(long)]
     pub operator: bool,
+    /// Window size in points, WIDTHxHEIGHT.
+    #[arg(long, default_value = "1600x900", value_parser = parse_window_size)]
+    pub window: [f32; 2],
+}
+
+/// Parses "1600x900".
+fn parse_window_size(s: &str) -> Result<[f32; 2], String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("{s}: expected WIDTHxHEIGHT"))?;
+    let w: f32 = w.trim().parse().map_err(|_| format!("{s}: bad width"))?;
+    let h: f32 = h.trim().parse().map_err(|_| format!("{s}: bad height"))?;
+    if !(200.0..=10000.0).contains(&w) || !(200.0..=10000.0).contains(&h) {
+        return Err(format!("{s}: window size out of range"));
+    }
+    Ok([w, h])
 }
 
 pub fn run_demo_cli(args: DemoUiArgs) -> anyhow::Result<()> {
@@ -1248,6 +1274,7 @@ pub fn run_demo_cli(args: DemoUiArgs) -> anyhow::Result<()> {
     let opts = AppOptions {
         title: "fitstation demo".into(),
         operator: args.operator,
+        window_size: args.window,
         exit_after_frames: args
             .exit_after_frames
             .or(args.screenshot.as_ref().map(|_| DEFAULT_SCREENSHOT_FRAMES)),

@@ -8,6 +8,7 @@
 //! snapshot on screen.
 
 use super::record::Recorder;
+use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{
     FitSnapshot, FramePair, FrameProcessor, FrameSource, LatestSlot, SourceError,
 };
@@ -44,11 +45,22 @@ pub struct Controls {
     pub stop: AtomicBool,
     pub recorder: Mutex<Option<Recorder>>,
     pub status: Mutex<SourceStatus>,
+    /// Durations of `source` (reading one pair) and `process` (one snapshot), ms.
+    pub stats: Mutex<TimingStats>,
 }
 
 impl Controls {
     pub fn status(&self) -> SourceStatus {
         self.status.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+    /// Median/p95 of the pipeline threads' own work.
+    pub fn thread_stats(&self) -> TimingStats {
+        self.stats.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+    fn add_stat(&self, stage: &str, since: Instant) {
+        if let Ok(mut s) = self.stats.lock() {
+            s.add(stage, since.elapsed().as_secs_f64() * 1e3);
+        }
     }
     fn with_status(&self, f: impl FnOnce(&mut SourceStatus)) {
         if let Ok(mut s) = self.status.lock() {
@@ -99,8 +111,10 @@ impl Runner {
                                 continue;
                             }
                         }
+                        let t0 = Instant::now();
                         match source.next_pair() {
                             Ok(Some(pair)) => {
+                                controls.add_stat("source", t0);
                                 if let Ok(r) = controls.recorder.lock() {
                                     if let Some(r) = r.as_ref() {
                                         r.push(&pair);
@@ -163,7 +177,9 @@ impl Runner {
                         if controls.reset_subject.swap(false, Ordering::Relaxed) {
                             processor.reset_subject();
                         }
+                        let t0 = Instant::now();
                         let snap = processor.process(&pair);
+                        controls.add_stat("process", t0);
                         snapshots.put(snap);
                         notify();
                     }
