@@ -70,6 +70,17 @@ impl OrbitCamera {
             .clamp(DISTANCE_RANGE_M.0, DISTANCE_RANGE_M.1);
     }
 
+    /// Sets the distance so a body of `size` (metres, x y z extents) fills the view of
+    /// aspect width/height at any yaw, with a margin.
+    pub fn fit(&mut self, size: Vec3, aspect: f32) {
+        const MARGIN: f32 = 1.12;
+        let t = (FOV_Y_RAD * 0.5).tan();
+        let half_h = 0.5 * size.y;
+        let half_w = 0.5 * size.x.max(size.z);
+        let d = (half_h / t).max(half_w / (t * aspect.max(0.05))) * MARGIN + half_w;
+        self.distance_m = d.clamp(DISTANCE_RANGE_M.0, DISTANCE_RANGE_M.1);
+    }
+
     pub fn eye(&self) -> Vec3 {
         let dir = Vec3::new(
             self.yaw.sin() * self.pitch.cos(),
@@ -580,6 +591,37 @@ mod tests {
         assert!(c.eye().x > c.target.x + 1.0 && (c.eye().z - c.target.z).abs() < 1e-4);
         c.preset(ViewPreset::ThreeQuarter);
         assert!(c.eye().x > 0.5 && c.eye().z > 0.5);
+    }
+
+    #[test]
+    fn fit_keeps_the_body_inside_the_view() {
+        let size = Vec3::new(0.9, 1.75, 0.3);
+        for aspect in [0.4f32, 0.75, 1.5] {
+            for preset in [
+                ViewPreset::Front,
+                ViewPreset::Side,
+                ViewPreset::ThreeQuarter,
+            ] {
+                let mut c = OrbitCamera {
+                    target: Vec3::new(0.0, 0.875, 0.0),
+                    ..Default::default()
+                };
+                c.preset(preset);
+                c.fit(size, aspect);
+                let vp = c.view_proj(aspect);
+                for sx in [-0.45f32, 0.45] {
+                    for sy in [0.0f32, 1.75] {
+                        for sz in [-0.15f32, 0.15] {
+                            let p = vp * Vec3::new(sx, sy, sz).extend(1.0);
+                            assert!(
+                                (p.x / p.w).abs() <= 1.0 && (p.y / p.w).abs() <= 1.0,
+                                "{aspect} {preset:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
     }
 
     #[test]

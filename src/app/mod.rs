@@ -275,6 +275,8 @@ struct StationApp {
     avatar_generation: u64,
     avatar_ptr: *const crate::mesh::TriMesh,
     orbit: OrbitCamera,
+    /// The operator zoomed by hand: stop fitting the avatar into the view.
+    user_zoomed: bool,
     ui_meter: RateMeter,
     snap_meter: RateMeter,
     ui_stats: TimingStats,
@@ -336,6 +338,7 @@ impl StationApp {
             avatar_generation: 0,
             avatar_ptr: std::ptr::null(),
             orbit: OrbitCamera::default(),
+            user_zoomed: false,
             ui_meter: RateMeter::default(),
             snap_meter: RateMeter::default(),
             ui_stats: TimingStats::default(),
@@ -891,12 +894,23 @@ impl StationApp {
             if d != Vec2::ZERO || scroll != 0.0 {
                 self.orbit.drag(d.x, d.y, scroll);
             }
+            if scroll != 0.0 {
+                self.user_zoomed = true;
+            }
         }
         let mesh = self.current.as_ref().and_then(|s| s.avatar.clone());
         if let Some(m) = &mesh {
             if let Some(b) = m.bounds() {
                 let c = b.center();
                 self.orbit.target = glam::Vec3::new(0.0, c.y as f32, 0.0);
+                if !self.user_zoomed {
+                    let size = b.size();
+                    let aspect = avatar_rect.width() / avatar_rect.height().max(1.0);
+                    self.orbit.fit(
+                        glam::Vec3::new(size.x as f32, size.y as f32, size.z as f32),
+                        aspect,
+                    );
+                }
             }
         }
         let has_mesh = mesh.is_some();
@@ -933,6 +947,7 @@ impl StationApp {
                 ] {
                     if ui.small_button(label).clicked() {
                         self.orbit.preset(p);
+                        self.user_zoomed = false;
                     }
                 }
             });
