@@ -2,11 +2,7 @@
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(
-    name = "fitstation",
-    version,
-    about = "Two-camera capture-and-fit body measurement station"
-)]
+#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
 struct Cli {
     #[command(subcommand)]
     command: Command,

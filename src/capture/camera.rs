@@ -9,8 +9,8 @@
 //! Exposure and white balance: after [`CaptureControls::request_lock`] (the backdrop is
 //! learnt) each worker switches its camera to manual exposure and fixed white balance
 //! with raw V4L2 control ids (nokhwa has no auto/manual switch), and again after every
-//! reopen. Timestamps: seconds since the source was opened, taken when the frame is
-//! dequeued (both cameras on the same clock).
+//! reopen. Timestamps: seconds since the source was opened, from the driver's capture
+//! time when nokhwa gives one (else the dequeue time), both cameras on the same clock.
 
 use super::{device_index, yuyv_to_rgb, CaptureConfig, PairMatcher, PixelFormat, Reconnector};
 use crate::camera::StationCalibration;
@@ -87,6 +87,10 @@ impl CameraPairSource {
         let (tx, rx) = sync_channel(FRAME_QUEUE);
         let problems = Arc::new(Mutex::new([None, None]));
         let epoch = Instant::now();
+        let epoch_wall_s = std::time::SystemTime::now()
+            .duration_since(std::time::UNIX_EPOCH)
+            .map(|d| d.as_secs_f64())
+            .unwrap_or(0.0);
         for (which, name) in [
             (Which::Front, config.front.clone()),
             (Which::Side, config.side.clone()),
@@ -99,6 +103,7 @@ impl CameraPairSource {
                 tx: tx.clone(),
                 problems: problems.clone(),
                 epoch,
+                epoch_wall_s,
             };
             let spawned = std::thread::Builder::new()
                 .name(format!("camera-{which:?}"))
@@ -207,7 +212,12 @@ struct Worker {
     tx: SyncSender<Frame>,
     problems: Arc<Mutex<[Option<String>; 2]>>,
     epoch: Instant,
+    /// `epoch` as seconds since the UNIX epoch (the clock of driver timestamps).
+    epoch_wall_s: f64,
 }
+
+/// A driver timestamp further than this from the dequeue time is not trusted (s).
+const MAX_TIMESTAMP_DISAGREEMENT_S: f64 = 1.0;
 
 impl Worker {
     fn now(&self) -> f64 {
@@ -358,8 +368,15 @@ impl Worker {
             }
             match c.frame() {
                 Ok(buf) => {
-                    let t_s = self.now();
-                    link.on_frame(t_s);
+                    let now = self.now();
+                    link.on_frame(now);
+                    // The driver's capture time (V4L2 monotonic, given as wall-clock by
+                    // nokhwa) when there is one, else the time it was dequeued.
+                    let t_s = buf
+                        .capture_timestamp()
+                        .map(|d| d.as_secs_f64() - self.epoch_wall_s)
+                        .filter(|t| (t - now).abs() < MAX_TIMESTAMP_DISAGREEMENT_S)
+                        .unwrap_or(now);
                     let res = buf.resolution();
                     match self.decode(
                         buf.buffer(),
