@@ -845,7 +845,7 @@ impl StationApp {
     }
 
     fn views(&mut self, ui: &mut egui::Ui) {
-        let avail = ui.available_rect_before_wrap();
+        let avail = ui.available_rect_before_wrap().shrink(VIEW_MARGIN);
         let gap = 6.0;
         let w = (avail.width() - 2.0 * gap) / 3.0;
         let cols: Vec<Rect> = (0..3)
@@ -977,7 +977,9 @@ impl eframe::App for StationApp {
                 .default_size(340.0)
                 .show(ui, |ui| self.operator_panel(ui));
         }
-        egui::CentralPanel::default_margins().show(ui, |ui| self.views(ui));
+        // No panel fill behind the views: on a software renderer every covered pixel
+        // costs (the window's clear colour is the background).
+        egui::CentralPanel::no_frame().show(ui, |ui| self.views(ui));
 
         self.ui_stats.add("frame", t0.elapsed().as_secs_f64() * 1e3);
         // Screenshot and exit handling (CLI --screenshot / --exit-after-frames): the
@@ -1109,6 +1111,9 @@ pub fn downscale_for_display(
     egui::ColorImage::new([ow, oh], std::mem::take(scratch))
 }
 
+/// Margin around the views (points).
+const VIEW_MARGIN: f32 = 6.0;
+
 /// Colours of the overlay layers.
 const CONTOUR_COLOUR: Color32 = Color32::from_rgb(255, 220, 0);
 const BONE_COLOUR: Color32 = Color32::from_rgb(0, 230, 255);
@@ -1133,8 +1138,8 @@ fn draw_view(
     boards: &[operator::BoardDetection],
     operator: bool,
 ) -> Option<Rect> {
-    painter.rect_filled(area, 4.0, Color32::from_gray(24));
     let Some(tex) = tex else {
+        painter.rect_filled(area, 4.0, Color32::from_gray(24));
         painter.text(
             area.center(),
             egui::Align2::CENTER_CENTER,
