@@ -8,6 +8,7 @@
 //! environment variable `CI` is set, where it fails (CI must install xvfb,
 //! mesa-vulkan-drivers and libvulkan1).
 
+use std::os::unix::process::CommandExt;
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
@@ -74,6 +75,8 @@ fn run_window(shot: &Path) -> Result<(), String> {
         .args(["--exit-after-frames", &FRAMES.to_string()])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
+        // Its own process group, so a hung run can be ended with Xvfb and the app.
+        .process_group(0)
         .spawn()
         .map_err(|e| format!("cannot start xvfb-run: {e}"))?;
     let start = Instant::now();
@@ -81,6 +84,10 @@ fn run_window(shot: &Path) -> Result<(), String> {
         match child.try_wait() {
             Ok(Some(_)) => break,
             Ok(None) if start.elapsed() > TIMEOUT => {
+                let _ = Command::new("kill")
+                    .arg("-TERM")
+                    .arg(format!("-{}", child.id()))
+                    .status();
                 let _ = child.kill();
                 let _ = child.wait();
                 return Err(format!("the window did not finish within {TIMEOUT:?}"));

@@ -1004,7 +1004,11 @@ impl eframe::App for StationApp {
         let waiting = matches!(self.screenshot, ScreenshotState::Waiting(..));
         let shot_outstanding = self.screenshot_at.is_some() || self.auto_shot_requested || waiting;
         let exit_due = self.exit_after.is_some_and(|n| self.frames >= n);
-        if exit_due && !shot_outstanding {
+        // Never hang on a screenshot that does not come (a broken integration).
+        let overdue = self
+            .exit_after
+            .is_some_and(|n| self.frames >= n + 2 * SCREENSHOT_GRACE_FRAMES);
+        if exit_due && (!shot_outstanding || overdue) {
             self.write_summary();
             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
         } else if exit_due {
