@@ -43,6 +43,8 @@ pub struct Controls {
     /// Ask the processor to forget the subject before its next frame.
     pub reset_subject: AtomicBool,
     pub stop: AtomicBool,
+    /// Times the capture thread found itself paused with no step to take.
+    pub pause_polls: AtomicU64,
     pub recorder: Mutex<Option<Recorder>>,
     pub status: Mutex<SourceStatus>,
     /// Durations of `source` (reading one pair) and `process` (one snapshot), ms.
@@ -106,6 +108,7 @@ impl Runner {
                                 })
                                 .is_ok();
                             if !stepped {
+                                controls.pause_polls.fetch_add(1, Ordering::SeqCst);
                                 std::thread::sleep(PAUSED_POLL);
                                 next_due = Instant::now();
                                 continue;
@@ -280,29 +283,41 @@ mod tests {
         assert_eq!(st.pairs, 20);
     }
 
+    /// Waits until the capture thread has gone round its paused loop after `after`
+    /// polls: everything it started before is then finished.
+    fn wait_for_pause_poll(c: &Controls, after: u64) {
+        for _ in 0..20_000 {
+            if c.pause_polls.load(Ordering::SeqCst) > after {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        panic!("the capture thread never paused");
+    }
+
     #[test]
     fn paused_source_only_steps() {
         let r = Runner::start(
             Box::new(Counting {
                 n: 0,
-                end: 1000,
+                end: u64::MAX,
                 fail_at: None,
             }),
             Box::new(Echo),
             Box::new(|| {}),
         );
         let r = r.expect("threads");
-        r.controls.paused.store(true, Ordering::Relaxed);
-        // Whatever slipped through before the pause, stepping adds exactly the steps.
-        std::thread::sleep(Duration::from_millis(50));
-        let before = r.controls.status().pairs;
-        r.controls.steps.store(3, Ordering::Relaxed);
-        let mut waited = 0;
-        while r.controls.steps.load(Ordering::Relaxed) > 0 && waited < 400 {
-            std::thread::sleep(Duration::from_millis(5));
-            waited += 1;
+        let c = &r.controls;
+        c.paused.store(true, Ordering::SeqCst);
+        wait_for_pause_poll(c, c.pause_polls.load(Ordering::SeqCst));
+        let before = c.status().pairs;
+        c.steps.store(3, Ordering::SeqCst);
+        while c.steps.load(Ordering::SeqCst) > 0 {
+            std::thread::sleep(Duration::from_millis(1));
         }
-        std::thread::sleep(Duration::from_millis(50));
-        assert_eq!(r.controls.status().pairs, before + 3);
+        // The last step's pair is complete once the thread polls the pause again.
+        wait_for_pause_poll(c, c.pause_polls.load(Ordering::SeqCst));
+        assert_eq!(c.status().pairs, before + 3);
+        assert!(!c.status().ended);
     }
 }
