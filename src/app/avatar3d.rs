@@ -177,6 +177,9 @@ pub struct AvatarResources {
     sampler: wgpu::Sampler,
     target: Option<Target>,
     mesh: Option<GpuMesh>,
+    /// What the colour texture currently shows (mesh generation, camera, size): an
+    /// unchanged view is not rendered again.
+    shown: Option<(Option<u64>, [f32; 6], [u32; 2])>,
     /// Scratch for vertex data (position + normal interleaved).
     vertex_scratch: Vec<f32>,
     index_scratch: Vec<u32>,
@@ -341,6 +344,7 @@ impl AvatarResources {
             blit_layout,
             sampler,
             target: None,
+            shown: None,
             mesh: None,
             vertex_scratch: Vec::new(),
             index_scratch: Vec::new(),
@@ -351,6 +355,7 @@ impl AvatarResources {
         if self.target.as_ref().is_some_and(|t| t.size == size) {
             return;
         }
+        self.shown = None;
         let extent = wgpu::Extent3d {
             width: size[0],
             height: size[1],
@@ -510,6 +515,23 @@ impl egui_wgpu::CallbackTrait for AvatarCallback {
         if let Some(mesh) = &self.mesh {
             res.upload_mesh(device, queue, mesh, self.generation);
         }
+        let c = &self.camera;
+        let key = (
+            self.mesh.as_ref().map(|_| self.generation),
+            [
+                c.yaw,
+                c.pitch,
+                c.distance_m,
+                c.target.x,
+                c.target.y,
+                c.target.z,
+            ],
+            size,
+        );
+        if res.shown == Some(key) {
+            return Vec::new();
+        }
+        res.shown = Some(key);
         let vp = self.camera.view_proj(size[0] as f32 / size[1] as f32);
         let eye = self.camera.eye();
         let mut uniforms = [0f32; 24];

@@ -88,8 +88,8 @@ const HEAD: usize = 0;
 const NECK: usize = 1;
 
 impl DemoBody {
-    /// The body at time `t_s`: `sway` moves it slightly, `arms_up` spreads the arms
-    /// (a pose to correct), `breathe` scales the torso a little.
+    /// The body at time `t_s`, swaying slightly; `arms_spread` (0 = A-pose, 1 = arms
+    /// raised) makes a pose to correct.
     pub fn at(t_s: f64, arms_spread: f64) -> Self {
         let sway = DVec3::new(0.012 * (t_s * 0.9).sin(), 0.0, 0.008 * (t_s * 0.7).cos());
         let arm = |side: f64, y: f64, out: f64| DVec3::new(side * out, y, 0.0);

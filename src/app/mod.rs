@@ -244,9 +244,6 @@ struct ViewTexture {
     source: *const image::RgbImage,
 }
 
-// The raw pointer is only compared, never dereferenced.
-unsafe impl Send for ViewTexture {}
-
 enum ScreenshotState {
     None,
     Waiting(Arc<Mutex<Option<Arc<egui::ColorImage>>>>, PathBuf),
