@@ -8,9 +8,11 @@
 //! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
 //! wires them together with capture and the screen.
 
+pub mod app;
 pub mod body;
 pub mod calibrate;
 pub mod camera;
+pub mod capture;
 pub mod contour;
 pub mod deform;
 pub mod eval;

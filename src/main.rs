@@ -36,6 +36,10 @@ enum Command {
     Version,
     /// Calibrate the two cameras (lens, then position at the mark) or check a station.yaml.
     Calibrate(fitstation::calibrate::cli::CalibrateArgs),
+    /// The station screen on a synthetic demo station (no cameras needed).
+    DemoUi(fitstation::app::DemoUiArgs),
+    /// The station screen on two live cameras (build with --features camera).
+    Live(fitstation::app::LiveArgs),
 }
 
 #[derive(Subcommand)]
@@ -58,6 +62,8 @@ fn main() -> anyhow::Result<()> {
         Command::Bench { what: BenchCommand::Deform(args) } => fitstation::deform::bench::run(args)?,
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
         Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,
+        Command::DemoUi(args) => fitstation::app::run_demo_cli(args)?,
+        Command::Live(args) => fitstation::app::run_live_cli(args)?,
     }
     Ok(())
 }

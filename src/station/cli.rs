@@ -68,6 +68,18 @@ pub struct ReplayArgs {
     /// Stop after this many frame pairs.
     #[arg(long)]
     pub max_frames: Option<usize>,
+    /// Show the station screen (views, avatar, measurements) while replaying.
+    #[arg(long)]
+    pub ui: bool,
+    /// With --ui: save a screenshot of the window after --exit-after-frames frames.
+    #[arg(long, requires = "ui")]
+    pub screenshot: Option<PathBuf>,
+    /// With --ui: close the window after this many screen frames.
+    #[arg(long, requires = "ui")]
+    pub exit_after_frames: Option<u64>,
+    /// With --ui: start with the operator tools open.
+    #[arg(long, requires = "ui")]
+    pub operator: bool,
     #[command(flatten)]
     pub fit: FitCliOptions,
 }
@@ -223,6 +235,18 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
         opts.stature_m = source.recording().metadata().stature_m;
     }
     let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
+    if args.ui {
+        let app_opts = crate::app::AppOptions {
+            title: format!("fitstation: replay {}", args.recording.display()),
+            screenshot: args.screenshot.clone(),
+            exit_after_frames: args.exit_after_frames,
+            operator: args.operator,
+            ..crate::app::AppOptions::default()
+        };
+        let summary = crate::app::run(Box::new(source), Box::new(proc_), app_opts)?;
+        eprintln!("{summary:?}");
+        return Ok(());
+    }
     let summary = run_offline(&mut source, &mut proc_, args.max_frames, !args.fit.json);
     finish(summary, args.out.as_deref(), args.fit.json)
 }
