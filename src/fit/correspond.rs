@@ -40,7 +40,14 @@ pub enum Part {
 }
 
 impl Part {
-    pub const ALL: [Part; 6] = [Part::Head, Part::Torso, Part::LeftArm, Part::RightArm, Part::LeftLeg, Part::RightLeg];
+    pub const ALL: [Part; 6] = [
+        Part::Head,
+        Part::Torso,
+        Part::LeftArm,
+        Part::RightArm,
+        Part::LeftLeg,
+        Part::RightLeg,
+    ];
     fn is_arm(self) -> bool {
         matches!(self, Part::LeftArm | Part::RightArm)
     }
@@ -121,7 +128,11 @@ impl MaskRef<'_> {
                 0.0
             } else {
                 let v = self.data.get((y * w + x) as usize).copied().unwrap_or(0);
-                if v > 127 { 1.0 } else { 0.0 }
+                if v > 127 {
+                    1.0
+                } else {
+                    0.0
+                }
             }
         };
         let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;
@@ -145,7 +156,12 @@ pub struct SearchOptions {
 
 impl Default for SearchOptions {
     fn default() -> Self {
-        SearchOptions { reach_m: 0.12, step_px: 0.5, max_shift_m: 0.08, max_jump_m: 0.02 }
+        SearchOptions {
+            reach_m: 0.12,
+            step_px: 0.5,
+            max_shift_m: 0.08,
+            max_jump_m: 0.02,
+        }
     }
 }
 
@@ -155,6 +171,12 @@ pub struct ControlSet {
     pub controls: Vec<Control>,
     /// Vertices of each slice (band of one part), to recompute centroids as the mesh moves.
     pub slice_members: Vec<Vec<u32>>,
+    /// Per slice: vertices of each other part (arms, torso, legs; not the head) in the same
+    /// height band, whose silhouettes can merge with the slice's part (see [`occluded`]).
+    pub slice_occluders: Vec<Vec<Vec<u32>>>,
+    /// Per leg slice: the other leg's vertices in the same band (in the side view the two
+    /// legs overlap; only the one reaching further out owns the silhouette's edge).
+    pub slice_rivals: Vec<Vec<u32>>,
     pub variant: Option<Variant>,
 }
 
@@ -170,6 +192,8 @@ pub struct TargetStats {
     pub not_visible: usize,
     /// Found, but moved too far, or unlike its neighbours along the same side of the part.
     pub rejected: usize,
+    /// The edge may belong to another part in this view (arm over the torso, other leg).
+    pub occluded: usize,
 }
 
 /// Chooses control vertices on `mesh` (the pose-synchronised candidate).
@@ -186,29 +210,62 @@ pub fn select_controls(
     front: &Camera,
     side: &Camera,
 ) -> ControlSet {
-    let mut set = ControlSet { variant: Some(variant), ..Default::default() };
+    let mut set = ControlSet {
+        variant: Some(variant),
+        ..Default::default()
+    };
     let Some(bb) = mesh.bounds() else { return set };
     let step = slice_step_m.max(1e-3);
     let nslices = ((bb.size().y / step).ceil() as usize).max(1);
+    let band_of = |p: DVec3| (((p.y - bb.min.y) / step).max(0.0) as usize).min(nslices - 1);
+    // Every labelled vertex by part and band (rigid parts included: a hand can hide a hip).
+    let mut all_bands: Vec<Vec<Vec<u32>>> = vec![vec![Vec::new(); nslices]; Part::ALL.len()];
+    for (v, p) in mesh.positions.iter().enumerate() {
+        if let Some(l) = labels.get(v) {
+            if *l != Part::Head {
+                all_bands[part_index(*l)][band_of(*p)].push(v as u32);
+            }
+        }
+    }
     for part in Part::ALL {
         if part == Part::Head {
             continue;
         }
+        let rival = match part {
+            Part::LeftLeg => Some(Part::RightLeg),
+            Part::RightLeg => Some(Part::LeftLeg),
+            _ => None,
+        };
         let mut bands: Vec<Vec<u32>> = vec![Vec::new(); nslices];
         for (v, p) in mesh.positions.iter().enumerate() {
             if labels.get(v) != Some(&part) || excluded.get(v).copied().unwrap_or(false) {
                 continue;
             }
-            let k = (((p.y - bb.min.y) / step) as usize).min(nslices - 1);
-            bands[k].push(v as u32);
+            bands[band_of(*p)].push(v as u32);
         }
-        for members in bands {
+        for (k, members) in bands.into_iter().enumerate() {
             if members.len() < 4 {
                 continue;
             }
             let slice = set.slice_members.len() as u32;
-            let statuses: &[Status] =
-                if part.is_arm() { &[Status::Left, Status::Right] } else { &[Status::Left, Status::Right, Status::Front, Status::Back] };
+            let mut occluders = Vec::new();
+            for other in Part::ALL {
+                let vs = &all_bands[part_index(other)][k];
+                if other != part && other != Part::Head && Some(other) != rival && !vs.is_empty() {
+                    occluders.push(vs.clone());
+                }
+            }
+            set.slice_occluders.push(occluders);
+            set.slice_rivals.push(
+                rival
+                    .map(|r| all_bands[part_index(r)][k].clone())
+                    .unwrap_or_default(),
+            );
+            let statuses: &[Status] = if part.is_arm() {
+                &[Status::Left, Status::Right]
+            } else {
+                &[Status::Left, Status::Right, Status::Front, Status::Back]
+            };
             for &status in statuses {
                 let cam = match status.view() {
                     View::Front => front,
@@ -229,7 +286,12 @@ pub fn select_controls(
                 };
                 if let Some(&best) = members.iter().max_by(|a, b| key(**a).total_cmp(&key(**b))) {
                     if !set.controls.iter().any(|c| c.vertex == best) {
-                        set.controls.push(Control { vertex: best, part, status, slice });
+                        set.controls.push(Control {
+                            vertex: best,
+                            part,
+                            status,
+                            slice,
+                        });
                     }
                 }
             }
@@ -238,6 +300,77 @@ pub fn select_controls(
     }
     set
 }
+
+fn part_index(p: Part) -> usize {
+    Part::ALL.iter().position(|q| *q == p).unwrap_or(0)
+}
+
+/// Bearing of `p` seen from `cam`, along the image axis that `status` points along (signed
+/// so that larger is further toward the status side), in radians-ish (tangent) units, and
+/// the depth of `p` in front of the camera.
+#[inline]
+fn bearing(cam: &Camera, status: Status, p: DVec3) -> (f64, f64) {
+    let c = cam.camera_from_station.apply(p);
+    let axis_cam = cam.camera_from_station.rotation * status.axis();
+    let u = if c.z > 1e-6 { c.x / c.z } else { 0.0 };
+    (u * axis_cam.x.signum(), c.z)
+}
+
+/// Whether the silhouette edge a control looks for may belong to another part (the paper
+/// has the operator separate the arm in the side photo; a live station cannot).
+///
+/// Seen from the control's camera, in the control's band: another part whose extent comes
+/// within [`OCCLUSION_MARGIN_M`] of the control's own extreme (it touches or crosses the
+/// edge: an arm sticking out behind the back, a hand against the hip) hides the edge;
+/// a part wholly inside or clearly beyond (with a gap) does not. For a leg in the side
+/// view, the other leg hides the edge only when it reaches further out.
+fn occluded(positions: &[DVec3], set: &ControlSet, c: &Control, cam: &Camera) -> bool {
+    let (u_c, depth) = bearing(cam, c.status, positions[c.vertex as usize]);
+    let margin_m = match c.status.view() {
+        View::Front => OCCLUSION_MARGIN_M,
+        View::Side => SIDE_OCCLUSION_MARGIN_M,
+    };
+    let margin = margin_m / depth.max(0.1);
+    let slice = c.slice as usize;
+    let near = |vs: &[u32]| -> Option<(f64, f64)> {
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for &v in vs {
+            let (u, _) = bearing(cam, c.status, positions[v as usize]);
+            lo = lo.min(u);
+            hi = hi.max(u);
+        }
+        (hi >= lo).then_some((lo, hi))
+    };
+    for group in set
+        .slice_occluders
+        .get(slice)
+        .map(|g| g.as_slice())
+        .unwrap_or(&[])
+    {
+        if let Some((lo, hi)) = near(group) {
+            if lo <= u_c + margin && hi >= u_c - margin {
+                return true;
+            }
+        }
+    }
+    if let Some((lo, hi)) = set.slice_rivals.get(slice).and_then(|o| near(o)) {
+        let hidden = match c.status.view() {
+            View::Side => hi > u_c,
+            View::Front => lo <= u_c + margin && hi >= u_c - margin,
+        };
+        if hidden {
+            return true;
+        }
+    }
+    false
+}
+
+/// How close (metres, at the control's depth) another part's silhouette may come to a
+/// control's edge before the edge is taken as hidden.
+const OCCLUSION_MARGIN_M: f64 = 0.015;
+/// The same in the side view, where the arms lie over the trunk and the legs over each
+/// other: only a part reaching out to the edge hides it.
+const SIDE_OCCLUSION_MARGIN_M: f64 = 0.003;
 
 /// Finds the target of every control on the current `positions`.
 ///
@@ -251,17 +384,31 @@ pub fn find_targets(
     targets: &mut Vec<Option<DVec3>>,
 ) -> TargetStats {
     centroids.clear();
-    centroids.extend(set.slice_members.iter().map(|m| {
-        m.iter().map(|&v| positions[v as usize]).sum::<DVec3>() / m.len().max(1) as f64
-    }));
+    centroids.extend(
+        set.slice_members.iter().map(|m| {
+            m.iter().map(|&v| positions[v as usize]).sum::<DVec3>() / m.len().max(1) as f64
+        }),
+    );
     targets.clear();
     let mut stats = TargetStats::default();
     let variant = set.variant.unwrap_or(Variant::SliceExtremes);
+    let debug = std::env::var_os("FITSTATION_DEBUG").is_some();
+    let mut occ_per: std::collections::BTreeMap<String, usize> = Default::default();
     for c in &set.controls {
         let (cam, mask) = match c.status.view() {
             View::Front => views[0],
             View::Side => views[1],
         };
+        if occluded(positions, set, c, cam) {
+            stats.occluded += 1;
+            if debug {
+                *occ_per
+                    .entry(format!("{:?}/{:?}", c.part, c.status))
+                    .or_default() += 1;
+            }
+            targets.push(None);
+            continue;
+        }
         let p = positions[c.vertex as usize];
         let centroid = centroids[c.slice as usize];
         let dir = match variant {
@@ -270,7 +417,11 @@ pub fn find_targets(
                 // Horizontal direction perpendicular to the viewing ray, toward the status side.
                 let ray = p - cam.center_in_station();
                 let perp = DVec3::new(-ray.z, 0.0, ray.x).normalize_or_zero();
-                if perp.dot(c.status.axis()) >= 0.0 { perp } else { -perp }
+                if perp.dot(c.status.axis()) >= 0.0 {
+                    perp
+                } else {
+                    -perp
+                }
             }
         };
         let origin = p + dir * (centroid - p).dot(dir);
@@ -301,13 +452,15 @@ pub fn find_targets(
     if std::env::var_os("FITSTATION_DEBUG").is_some() {
         let mut per: std::collections::BTreeMap<String, [usize; 2]> = Default::default();
         for (c, t) in set.controls.iter().zip(targets.iter()) {
-            let e = per.entry(format!("{:?}/{:?}", c.part, c.status)).or_default();
+            let e = per
+                .entry(format!("{:?}/{:?}", c.part, c.status))
+                .or_default();
             e[0] += 1;
             if t.is_some() {
                 e[1] += 1;
             }
         }
-        eprintln!("targets per part/status (total, found): {per:?}");
+        eprintln!("targets per part/status (total, found): {per:?}; occluded: {occ_per:?}");
     }
     stats
 }
@@ -316,17 +469,30 @@ pub fn find_targets(
 /// differs from the median of the neighbouring slices' controls on the same side of the
 /// same part by more than `max_jump_m` (a silhouette notch, an arm touching the torso).
 /// Returns how many were dropped.
-fn reject_outliers(positions: &[DVec3], set: &ControlSet, targets: &mut [Option<DVec3>], opts: &SearchOptions) -> usize {
+fn reject_outliers(
+    positions: &[DVec3],
+    set: &ControlSet,
+    targets: &mut [Option<DVec3>],
+    opts: &SearchOptions,
+) -> usize {
     const HALF_WINDOW: usize = 2;
     let disp: Vec<Option<f64>> = set
         .controls
         .iter()
         .zip(targets.iter())
-        .map(|(c, t)| t.map(|t| (t - positions[c.vertex as usize]).length() * (t - positions[c.vertex as usize]).dot(c.status.axis()).signum()))
+        .map(|(c, t)| {
+            t.map(|t| {
+                (t - positions[c.vertex as usize]).length()
+                    * (t - positions[c.vertex as usize])
+                        .dot(c.status.axis())
+                        .signum()
+            })
+        })
         .collect();
     let mut dropped = 0;
     // Chains: controls of one (part, status), in slice order (they were pushed that way).
-    let mut chains: std::collections::HashMap<(Part, Status), Vec<usize>> = std::collections::HashMap::new();
+    let mut chains: std::collections::HashMap<(Part, Status), Vec<usize>> =
+        std::collections::HashMap::new();
     for (i, c) in set.controls.iter().enumerate() {
         chains.entry((c.part, c.status)).or_default().push(i);
     }
@@ -366,9 +532,19 @@ enum Exit {
 
 /// Marches from `origin` along `dir` (metres, station frame) up to `t_max`, and returns the
 /// parameter where the silhouette is first left.
-fn first_exit(cam: &Camera, mask: MaskRef<'_>, origin: DVec3, dir: DVec3, t_max: f64, step_px: f64) -> (f64, Exit) {
-    let occ = |t: f64| -> Option<f64> { cam.project(origin + dir * t).map(|px| mask.occupancy(px)) };
-    let Some(o0) = occ(0.0) else { return (0.0, Exit::NotVisible) };
+fn first_exit(
+    cam: &Camera,
+    mask: MaskRef<'_>,
+    origin: DVec3,
+    dir: DVec3,
+    t_max: f64,
+    step_px: f64,
+) -> (f64, Exit) {
+    let occ =
+        |t: f64| -> Option<f64> { cam.project(origin + dir * t).map(|px| mask.occupancy(px)) };
+    let Some(o0) = occ(0.0) else {
+        return (0.0, Exit::NotVisible);
+    };
     if o0 < 0.5 {
         return (0.0, Exit::AnchorOutside);
     }
@@ -407,14 +583,43 @@ mod tests {
 
     /// Rasterises the silhouette of a convex-ish mesh by filling each projected triangle.
     pub(crate) fn render_mask(mesh: &TriMesh, cam: &Camera) -> Vec<u8> {
-        let (w, h) = (cam.intrinsics.width as usize, cam.intrinsics.height as usize);
+        let (w, h) = (
+            cam.intrinsics.width as usize,
+            cam.intrinsics.height as usize,
+        );
         let mut m = vec![0u8; w * h];
         for t in &mesh.triangles {
-            let Some(p) = t.iter().map(|&i| cam.project(mesh.positions[i as usize])).collect::<Option<Vec<_>>>() else { continue };
-            let minx = p.iter().map(|q| q.x).fold(f64::MAX, f64::min).floor().max(0.0) as usize;
-            let maxx = p.iter().map(|q| q.x).fold(f64::MIN, f64::max).ceil().min(w as f64 - 1.0) as usize;
-            let miny = p.iter().map(|q| q.y).fold(f64::MAX, f64::min).floor().max(0.0) as usize;
-            let maxy = p.iter().map(|q| q.y).fold(f64::MIN, f64::max).ceil().min(h as f64 - 1.0) as usize;
+            let Some(p) = t
+                .iter()
+                .map(|&i| cam.project(mesh.positions[i as usize]))
+                .collect::<Option<Vec<_>>>()
+            else {
+                continue;
+            };
+            let minx = p
+                .iter()
+                .map(|q| q.x)
+                .fold(f64::MAX, f64::min)
+                .floor()
+                .max(0.0) as usize;
+            let maxx = p
+                .iter()
+                .map(|q| q.x)
+                .fold(f64::MIN, f64::max)
+                .ceil()
+                .min(w as f64 - 1.0) as usize;
+            let miny = p
+                .iter()
+                .map(|q| q.y)
+                .fold(f64::MAX, f64::min)
+                .floor()
+                .max(0.0) as usize;
+            let maxy = p
+                .iter()
+                .map(|q| q.y)
+                .fold(f64::MIN, f64::max)
+                .ceil()
+                .min(h as f64 - 1.0) as usize;
             let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
             if area.abs() < 1e-12 {
                 continue;
@@ -446,14 +651,43 @@ mod tests {
         let labels = vec![Part::Torso; small.vertex_count()];
         let excluded = vec![false; small.vertex_count()];
         for variant in [Variant::SliceExtremes, Variant::PerspectiveRim] {
-            let set = select_controls(&small, &labels, &excluded, 0.1, variant, &calib.front, &calib.side);
+            let set = select_controls(
+                &small,
+                &labels,
+                &excluded,
+                0.1,
+                variant,
+                &calib.front,
+                &calib.side,
+            );
             assert!(set.controls.len() > 40, "{}", set.controls.len());
             let views = [
-                (&calib.front, MaskRef { width: 640, height: 480, data: &fm }),
-                (&calib.side, MaskRef { width: 640, height: 480, data: &sm }),
+                (
+                    &calib.front,
+                    MaskRef {
+                        width: 640,
+                        height: 480,
+                        data: &fm,
+                    },
+                ),
+                (
+                    &calib.side,
+                    MaskRef {
+                        width: 640,
+                        height: 480,
+                        data: &sm,
+                    },
+                ),
             ];
             let (mut c, mut t) = (Vec::new(), Vec::new());
-            let st = find_targets(&small.positions, &set, views, &SearchOptions::default(), &mut c, &mut t);
+            let st = find_targets(
+                &small.positions,
+                &set,
+                views,
+                &SearchOptions::default(),
+                &mut c,
+                &mut t,
+            );
             assert!(st.found > set.controls.len() * 8 / 10, "{st:?}");
             for (ctl, tg) in set.controls.iter().zip(&t) {
                 let Some(tg) = tg else { continue };
@@ -461,7 +695,11 @@ mod tests {
                 let r = DVec2::new(tg.x, tg.z).length();
                 // Where the silhouette ray meets the moved line: near radius 0.17 (the
                 // slice-extreme variant overshoots slightly under perspective).
-                assert!((r - 0.17).abs() < 0.006, "{variant:?} {:?} r={r}", ctl.status);
+                assert!(
+                    (r - 0.17).abs() < 0.006,
+                    "{variant:?} {:?} r={r}",
+                    ctl.status
+                );
                 assert!((tg.y - p.y).abs() < 1e-9);
             }
         }
@@ -473,13 +711,42 @@ mod tests {
         let m = shapes::elliptic_cylinder(0.15, 0.15, 1.6, 8, 24);
         let empty = vec![0u8; 320 * 240];
         let labels = vec![Part::Torso; m.vertex_count()];
-        let set = select_controls(&m, &labels, &vec![false; m.vertex_count()], 0.2, Variant::SliceExtremes, &calib.front, &calib.side);
+        let set = select_controls(
+            &m,
+            &labels,
+            &vec![false; m.vertex_count()],
+            0.2,
+            Variant::SliceExtremes,
+            &calib.front,
+            &calib.side,
+        );
         let views = [
-            (&calib.front, MaskRef { width: 320, height: 240, data: &empty }),
-            (&calib.side, MaskRef { width: 320, height: 240, data: &empty }),
+            (
+                &calib.front,
+                MaskRef {
+                    width: 320,
+                    height: 240,
+                    data: &empty,
+                },
+            ),
+            (
+                &calib.side,
+                MaskRef {
+                    width: 320,
+                    height: 240,
+                    data: &empty,
+                },
+            ),
         ];
         let (mut c, mut t) = (Vec::new(), Vec::new());
-        let st = find_targets(&m.positions, &set, views, &SearchOptions::default(), &mut c, &mut t);
+        let st = find_targets(
+            &m.positions,
+            &set,
+            views,
+            &SearchOptions::default(),
+            &mut c,
+            &mut t,
+        );
         assert_eq!(st.found, 0);
         assert_eq!(st.anchor_outside, set.controls.len());
     }

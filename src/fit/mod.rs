@@ -200,29 +200,49 @@ impl Fitter {
     ) -> Result<(&[DVec3], FitStats), FitError> {
         let views = [(&calib.front, front), (&calib.side, side)];
         let warm = self.subject.is_some();
-        let mut stats = FitStats { warm, ..Default::default() };
+        let mut stats = FitStats {
+            warm,
+            ..Default::default()
+        };
         if !warm {
             self.first_fit(calib, front, side, obs)?;
         }
         let rounds = if warm { 1 } else { self.opts.first_fit_rounds };
-        let Some(s) = self.subject.as_mut() else { return Err(FitError::NoTorso) };
+        let Some(s) = self.subject.as_mut() else {
+            return Err(FitError::NoTorso);
+        };
         for _ in 0..rounds {
-            let ts = correspond::find_targets(&s.positions, &s.controls, views, &self.opts.search, &mut self.centroids, &mut self.targets);
+            let ts = correspond::find_targets(
+                &s.positions,
+                &s.controls,
+                views,
+                &self.opts.search,
+                &mut self.centroids,
+                &mut self.targets,
+            );
             stats.targets = ts;
             let total = s.controls.controls.len();
             if ts.found * 4 < total {
-                return Err(FitError::TooFewTargets { found: ts.found, total });
+                return Err(FitError::TooFewTargets {
+                    found: ts.found,
+                    total,
+                });
             }
             // Controls without a target this frame hold their current position; the rigid
             // parts hold the candidate's.
             self.target_buf.clear();
             for (c, t) in s.controls.controls.iter().zip(&self.targets) {
-                self.target_buf.push(t.unwrap_or(s.positions[c.vertex as usize]));
+                self.target_buf
+                    .push(t.unwrap_or(s.positions[c.vertex as usize]));
             }
-            self.target_buf.extend(s.pinned.iter().map(|&v| s.rest.positions[v as usize]));
+            self.target_buf
+                .extend(s.pinned.iter().map(|&v| s.rest.positions[v as usize]));
             let solves = if warm { 1 } else { FIRST_FIT_SOLVES };
             for _ in 0..solves {
-                let rep = s.deformer.solve(&self.target_buf, &mut s.positions).map_err(|e| FitError::Deform(e.to_string()))?;
+                let rep = s
+                    .deformer
+                    .solve(&self.target_buf, &mut s.positions)
+                    .map_err(|e| FitError::Deform(e.to_string()))?;
                 stats.decode_iterations += rep.iterations;
                 if std::env::var_os("FITSTATION_DEBUG").is_some() {
                     eprintln!("decode: {rep:?}");
@@ -233,7 +253,8 @@ impl Fitter {
             }
         }
         if std::env::var_os("FITSTATION_DEBUG").is_some() {
-            let _ = crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_candidate.obj"), &s.rest);
+            let _ =
+                crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_candidate.obj"), &s.rest);
         }
         // Residual after the solve.
         let mut sum = 0.0;
@@ -253,14 +274,29 @@ impl Fitter {
     /// The current avatar as a mesh (template triangles).
     pub fn avatar(&self) -> Option<TriMesh> {
         let s = self.subject.as_ref()?;
-        Some(TriMesh::new(s.positions.clone(), self.library.template().mesh.triangles.clone()))
+        Some(TriMesh::new(
+            s.positions.clone(),
+            self.library.template().mesh.triangles.clone(),
+        ))
     }
 
-    fn first_fit(&mut self, calib: &StationCalibration, front: MaskRef<'_>, side: MaskRef<'_>, obs: &Observation) -> Result<(), FitError> {
+    fn first_fit(
+        &mut self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        side: MaskRef<'_>,
+        obs: &Observation,
+    ) -> Result<(), FitError> {
         let f = (&calib.front, front);
         let sd = (&calib.side, side);
         let observed = shape::observed_descriptor(f, sd, obs.stature_m, obs.torso_point);
-        if observed.torso_width.iter().filter(|w| w.is_finite()).count() < shape::TORSO_LEVELS.len() / 2 {
+        if observed
+            .torso_width
+            .iter()
+            .filter(|w| w.is_finite())
+            .count()
+            < shape::TORSO_LEVELS.len() / 2
+        {
             return Err(FitError::NoTorso);
         }
         // 1. Library search.
@@ -268,13 +304,22 @@ impl Fitter {
             .library_descriptors
             .iter()
             .enumerate()
-            .min_by(|a, b| a.1.distance2(&observed).total_cmp(&b.1.distance2(&observed)))
+            .min_by(|a, b| {
+                a.1.distance2(&observed)
+                    .total_cmp(&b.1.distance2(&observed))
+            })
             .map(|(i, _)| i)
             .ok_or(FitError::NoTorso)?;
         let mut params = self.library_params[best].clone();
         // 2. Gauss-Newton refinement of the macro parameters on the descriptor.
         if self.opts.refine_shape {
-            params = shape_refine(&self.library, &self.template_labels, params, &observed, self.opts.shape_iterations);
+            params = shape_refine(
+                &self.library,
+                &self.template_labels,
+                params,
+                &observed,
+                self.opts.shape_iterations,
+            );
         }
         // 3. Body, scaled to the stature and placed on the subject.
         let mut body = self.library.body(&params);
@@ -282,9 +327,22 @@ impl Fitter {
         let k = obs.stature_m / stature;
         // Place the body so that its torso's centre at the reference height lands on the
         // silhouettes' section centre there (x from the front view, z from the side).
-        let seen = shape::section_centre(f, sd, PLACEMENT_LEVEL * obs.stature_m, obs.torso_point).map(|c| c.0).unwrap_or(obs.torso_point);
-        let own = shape::torso_centre(&body.positions, &self.template_labels, PLACEMENT_LEVEL * stature).unwrap_or(DVec3::ZERO);
-        body.map_positions(|p| DVec3::new((p.x - own.x) * k + seen.x, p.y * k, (p.z - own.z) * k + seen.z));
+        let seen = shape::section_centre(f, sd, PLACEMENT_LEVEL * obs.stature_m, obs.torso_point)
+            .map(|c| c.0)
+            .unwrap_or(obs.torso_point);
+        let own = shape::torso_centre(
+            &body.positions,
+            &self.template_labels,
+            PLACEMENT_LEVEL * stature,
+        )
+        .unwrap_or(DVec3::ZERO);
+        body.map_positions(|p| {
+            DVec3::new(
+                (p.x - own.x) * k + seen.x,
+                p.y * k,
+                (p.z - own.z) * k + seen.z,
+            )
+        });
         // 4. Pose synchronisation.
         pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
         // 5. Controls and deformer on the posed candidate.
@@ -295,13 +353,29 @@ impl Fitter {
                 excluded[v as usize] = true;
             }
         }
-        let controls = correspond::select_controls(&body, &self.template_labels, &excluded, step, self.opts.variant, &calib.front, &calib.side);
-        let pinned: Vec<u32> = (0..body.vertex_count() as u32).filter(|&v| excluded[v as usize]).collect();
+        let controls = correspond::select_controls(
+            &body,
+            &self.template_labels,
+            &excluded,
+            step,
+            self.opts.variant,
+            &calib.front,
+            &calib.side,
+        );
+        let pinned: Vec<u32> = (0..body.vertex_count() as u32)
+            .filter(|&v| excluded[v as usize])
+            .collect();
         let mut indices: Vec<u32> = controls.controls.iter().map(|c| c.vertex).collect();
         indices.extend_from_slice(&pinned);
-        let dopts = DecodeOptions { max_iterations: DECODE_ITERATIONS_PER_SOLVE, ..DecodeOptions::default() };
-        let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts).map_err(|e| FitError::Deform(e.to_string()))?;
-        deformer.set_controls(&indices).map_err(|e| FitError::Deform(e.to_string()))?;
+        let dopts = DecodeOptions {
+            max_iterations: DECODE_ITERATIONS_PER_SOLVE,
+            ..DecodeOptions::default()
+        };
+        let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts)
+            .map_err(|e| FitError::Deform(e.to_string()))?;
+        deformer
+            .set_controls(&indices)
+            .map_err(|e| FitError::Deform(e.to_string()))?;
         self.subject = Some(SubjectState {
             pinned,
             params,
@@ -330,12 +404,28 @@ fn shape_refine(
     let residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
         library.body_into(p, buf);
         let d = shape::mesh_descriptor(buf, labels).as_vec();
-        d.iter().zip(&obs).map(|(a, b)| if a.is_finite() && b.is_finite() { a - b } else { 0.0 }).collect()
+        d.iter()
+            .zip(&obs)
+            .map(|(a, b)| {
+                if a.is_finite() && b.is_finite() {
+                    a - b
+                } else {
+                    0.0
+                }
+            })
+            .collect()
     };
     // Age enters normalised to 0..1 over the library's adult range.
     let age_span = AGE_MAX_YEARS - AGE_MIN_YEARS;
     let get = |p: &ShapeParams, j: usize| {
-        [p.gender, p.muscle, p.weight, p.height, p.proportions, (p.age_years - AGE_MIN_YEARS) / age_span][j]
+        [
+            p.gender,
+            p.muscle,
+            p.weight,
+            p.height,
+            p.proportions,
+            (p.age_years - AGE_MIN_YEARS) / age_span,
+        ][j]
     };
     let set = |p: &mut ShapeParams, j: usize, v: f64| match j {
         0 => p.gender = v.clamp(0.0, 1.0),
@@ -375,7 +465,9 @@ fn shape_refine(
         for (i, row) in a.iter_mut().enumerate() {
             row[i] += DAMPING * trace;
         }
-        let Some(delta) = solve_small(a, g.map(|x| -x)) else { break };
+        let Some(delta) = solve_small(a, g.map(|x| -x)) else {
+            break;
+        };
         let mut q = p.clone();
         for (j, d) in delta.iter().enumerate() {
             set(&mut q, j, get(&p, j) + d.clamp(-0.3, 0.3));
@@ -424,7 +516,11 @@ mod tests {
     fn small_solver() {
         let a = [[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]];
         let x = [1.0, -2.0, 3.0];
-        let b = [a[0][0] * x[0] + a[0][1] * x[1], a[1][0] * x[0] + a[1][1] * x[1] + a[1][2] * x[2], a[2][1] * x[1] + a[2][2] * x[2]];
+        let b = [
+            a[0][0] * x[0] + a[0][1] * x[1],
+            a[1][0] * x[0] + a[1][1] * x[1] + a[1][2] * x[2],
+            a[2][1] * x[1] + a[2][2] * x[2],
+        ];
         let s = solve_small(a, b).unwrap();
         for i in 0..3 {
             assert!((s[i] - x[i]).abs() < 1e-12);

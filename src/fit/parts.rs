@@ -16,6 +16,11 @@ use super::correspond::Part;
 use crate::mesh::{OneRings, TriMesh};
 use glam::DVec3;
 
+/// How far below the armpits the arms are taken as separate from the trunk, metres.
+const ARM_GAP_BELOW_ARMPIT_M: f64 = 0.03;
+/// Half-width of the band around the body axis that only the trunk reaches, metres.
+const AXIS_HALF_WIDTH_M: f64 = 0.05;
+
 /// The landmarks part labelling needs (station frame, metres).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PartLandmarks {
@@ -49,18 +54,75 @@ pub fn label_parts(mesh: &TriMesh, rings: &OneRings, lm: &PartLandmarks) -> Vec<
             }
         }
     }
+    // Below the armpits (A-pose) the arms are separate from the trunk: a component of the
+    // non-leg vertices there that never comes near the body axis is an arm (this catches
+    // fingers that reach inside the armpits' x range, beside the hips).
+    let below_y = lm.left_armpit.y.min(lm.right_armpit.y) - ARM_GAP_BELOW_ARMPIT_M;
+    let in_low = |v: usize| !is_leg[v] && mesh.positions[v].y < below_y;
+    let mut is_low_arm = vec![false; n];
+    let mut is_low_trunk = vec![false; n];
+    let mut seen = vec![false; n];
+    let mut comp = Vec::new();
+    for start in 0..n {
+        if seen[start] || !in_low(start) {
+            continue;
+        }
+        comp.clear();
+        seen[start] = true;
+        comp.push(start);
+        let mut k = 0;
+        while k < comp.len() {
+            let v = comp[k];
+            k += 1;
+            for &w in rings.neighbours(v) {
+                let w = w as usize;
+                if !seen[w] && in_low(w) {
+                    seen[w] = true;
+                    comp.push(w);
+                }
+            }
+        }
+        let on_axis = comp
+            .iter()
+            .any(|&v| (mesh.positions[v].x - lm.crotch.x).abs() < AXIS_HALF_WIDTH_M);
+        for &v in &comp {
+            if on_axis {
+                is_low_trunk[v] = true;
+            } else {
+                is_low_arm[v] = true;
+            }
+        }
+    }
     for (v, p) in mesh.positions.iter().enumerate() {
         labels[v] = if is_leg[v] {
-            if p.x >= lm.crotch.x { Part::LeftLeg } else { Part::RightLeg }
-        } else if p.y > lm.neck_y && p.x.abs() < (lm.left_armpit.x - lm.right_armpit.x).abs() * 0.5 {
+            if p.x >= lm.crotch.x {
+                Part::LeftLeg
+            } else {
+                Part::RightLeg
+            }
+        } else if p.y > lm.neck_y && p.x.abs() < (lm.left_armpit.x - lm.right_armpit.x).abs() * 0.5
+        {
             Part::Head
+        } else if is_low_arm[v] {
+            if p.x >= lm.crotch.x {
+                Part::LeftArm
+            } else {
+                Part::RightArm
+            }
+        } else if is_low_trunk[v] {
+            // Wide hips reach beyond the armpits' x: still the trunk.
+            Part::Torso
         } else if p.x > lm.left_armpit.x {
             Part::LeftArm
         } else if p.x < lm.right_armpit.x {
             Part::RightArm
         } else if p.y < lm.crotch.y {
             // Below the crotch but not connected to a sole: a hand near the thigh.
-            if p.x >= lm.crotch.x { Part::LeftArm } else { Part::RightArm }
+            if p.x >= lm.crotch.x {
+                Part::LeftArm
+            } else {
+                Part::RightArm
+            }
         } else {
             Part::Torso
         };
@@ -83,7 +145,8 @@ mod tests {
         let off = a.positions.len() as u32;
         let mut m = a.clone();
         m.positions.extend(b.positions);
-        m.triangles.extend(b.triangles.iter().map(|t| t.map(|i| i + off)));
+        m.triangles
+            .extend(b.triangles.iter().map(|t| t.map(|i| i + off)));
         let lm = PartLandmarks {
             crotch: DVec3::new(0.0, 0.9, 0.0),
             left_armpit: DVec3::new(0.2, 1.3, 0.0),

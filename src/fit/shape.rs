@@ -17,7 +17,9 @@ use glam::DVec3;
 
 /// Heights (fractions of stature) at which the torso is sampled: from just above the
 /// crotch (about 0.47 of stature on adults) to below the armpits (about 0.72).
-pub const TORSO_LEVELS: [f64; 12] = [0.50, 0.52, 0.54, 0.56, 0.58, 0.60, 0.62, 0.64, 0.66, 0.68, 0.70, 0.72];
+pub const TORSO_LEVELS: [f64; 12] = [
+    0.50, 0.52, 0.54, 0.56, 0.58, 0.60, 0.62, 0.64, 0.66, 0.68, 0.70, 0.72,
+];
 /// Heights (fractions of stature) at which the thighs are sampled (below the crotch).
 pub const THIGH_LEVELS: [f64; 2] = [0.40, 0.43];
 /// Half-thickness of the band of vertices taken as one level, metres.
@@ -54,14 +56,20 @@ impl ShapeDescriptor {
 
     /// The descriptor as one vector (for least squares), NaN where unobserved.
     pub fn as_vec(&self) -> Vec<f64> {
-        self.torso_width.iter().chain(&self.torso_depth).chain(&self.thigh_width).copied().collect()
+        self.torso_width
+            .iter()
+            .chain(&self.torso_depth)
+            .chain(&self.thigh_width)
+            .copied()
+            .collect()
     }
 }
 
 /// Descriptor of a body mesh (vertex positions with the template's part labels), standing
 /// with soles on y = 0.
 pub fn mesh_descriptor(positions: &[DVec3], labels: &[Part]) -> ShapeDescriptor {
-    let stature = positions.iter().map(|p| p.y).fold(f64::MIN, f64::max) - positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+    let stature = positions.iter().map(|p| p.y).fold(f64::MIN, f64::max)
+        - positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);
     let stature = stature.max(1e-6);
     let extent = |level: f64, part: Part, axis: usize| -> f64 {
         let y = level * stature;
@@ -73,11 +81,21 @@ pub fn mesh_descriptor(positions: &[DVec3], labels: &[Part]) -> ShapeDescriptor 
                 hi = hi.max(c);
             }
         }
-        if hi > lo { (hi - lo) / stature } else { f64::NAN }
+        if hi > lo {
+            (hi - lo) / stature
+        } else {
+            f64::NAN
+        }
     };
     ShapeDescriptor {
-        torso_width: TORSO_LEVELS.iter().map(|&l| extent(l, Part::Torso, 0)).collect(),
-        torso_depth: TORSO_LEVELS.iter().map(|&l| extent(l, Part::Torso, 2)).collect(),
+        torso_width: TORSO_LEVELS
+            .iter()
+            .map(|&l| extent(l, Part::Torso, 0))
+            .collect(),
+        torso_depth: TORSO_LEVELS
+            .iter()
+            .map(|&l| extent(l, Part::Torso, 2))
+            .collect(),
         thigh_width: THIGH_LEVELS
             .iter()
             .flat_map(|&l| [extent(l, Part::LeftLeg, 0), extent(l, Part::RightLeg, 0)])
@@ -100,8 +118,18 @@ pub fn torso_centre(positions: &[DVec3], labels: &[Part], y: f64) -> Option<DVec
 
 /// Where the silhouette is left when walking from `start` along `dir` (station frame),
 /// or None when `start` is not inside the silhouette or no boundary is within `reach_m`.
-pub fn silhouette_exit(cam: &Camera, mask: MaskRef<'_>, start: DVec3, dir: DVec3, reach_m: f64) -> Option<DVec3> {
-    let occ = |t: f64| cam.project(start + dir * t).map(|px| mask.occupancy(px)).unwrap_or(0.0);
+pub fn silhouette_exit(
+    cam: &Camera,
+    mask: MaskRef<'_>,
+    start: DVec3,
+    dir: DVec3,
+    reach_m: f64,
+) -> Option<DVec3> {
+    let occ = |t: f64| {
+        cam.project(start + dir * t)
+            .map(|px| mask.occupancy(px))
+            .unwrap_or(0.0)
+    };
     if occ(0.0) < 0.5 {
         return None;
     }
@@ -115,7 +143,11 @@ pub fn silhouette_exit(cam: &Camera, mask: MaskRef<'_>, start: DVec3, dir: DVec3
             let (mut lo, mut hi) = (prev, t);
             for _ in 0..14 {
                 let mid = 0.5 * (lo + hi);
-                if occ(mid) >= 0.5 { lo = mid } else { hi = mid }
+                if occ(mid) >= 0.5 {
+                    lo = mid
+                } else {
+                    hi = mid
+                }
             }
             return Some(start + dir * (0.5 * (lo + hi)));
         }
@@ -126,7 +158,12 @@ pub fn silhouette_exit(cam: &Camera, mask: MaskRef<'_>, start: DVec3, dir: DVec3
 
 /// The centre of the silhouettes' cross-section at height `y`: iterates between the two
 /// views (x from the front, z from the side) starting at `guess`.
-pub fn section_centre(front: (&Camera, MaskRef<'_>), side: (&Camera, MaskRef<'_>), y: f64, guess: DVec3) -> Option<(DVec3, f64, f64)> {
+pub fn section_centre(
+    front: (&Camera, MaskRef<'_>),
+    side: (&Camera, MaskRef<'_>),
+    y: f64,
+    guess: DVec3,
+) -> Option<(DVec3, f64, f64)> {
     const REACH_M: f64 = 0.6;
     let mut c = DVec3::new(guess.x, y, guess.z);
     let mut width = f64::NAN;
@@ -153,7 +190,10 @@ pub fn observed_descriptor(
     stature_m: f64,
     centre: DVec3,
 ) -> ShapeDescriptor {
-    let mut d = ShapeDescriptor { stature_m, ..Default::default() };
+    let mut d = ShapeDescriptor {
+        stature_m,
+        ..Default::default()
+    };
     let mut c = centre;
     for &l in &TORSO_LEVELS {
         match section_centre(front, side, l * stature_m, c) {
@@ -169,7 +209,14 @@ pub fn observed_descriptor(
         }
     }
     // Thighs: start half way between the body axis and the torso's side at hip level.
-    let hip_half = d.torso_width.first().copied().filter(|w| w.is_finite()).unwrap_or(0.2) * stature_m * 0.5;
+    let hip_half = d
+        .torso_width
+        .first()
+        .copied()
+        .filter(|w| w.is_finite())
+        .unwrap_or(0.2)
+        * stature_m
+        * 0.5;
     for &l in &THIGH_LEVELS {
         for side_sign in [1.0, -1.0] {
             let start = DVec3::new(c.x + side_sign * hip_half * 0.5, l * stature_m, c.z);
