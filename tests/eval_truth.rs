@@ -97,7 +97,7 @@ fn truth_scores_zero_and_a_shrunk_body_reports_the_shrink() {
     for m in &row.measurements {
         let e = m.error_mm.unwrap();
         assert!(
-            e.abs() < 0.05,
+            e.abs() < 1e-9,
             "{}: error {e} mm on the truth itself",
             m.name
         );
@@ -189,7 +189,7 @@ fn truth_scores_zero_and_a_shrunk_body_reports_the_shrink() {
         .as_array()
         .unwrap()
         .iter()
-        .all(|m| m["mean_abs_error_mm"].as_f64().unwrap() < 0.05));
+        .all(|m| m["mean_abs_error_mm"].as_f64().unwrap() < 1e-9));
 
     for d in [&rec, &tdir, &same, &shrunk, &report_dir] {
         let _ = std::fs::remove_dir_all(d);

@@ -144,14 +144,14 @@ fn true_mesh_remeasured_equals_stored_truth() {
     );
     for (k, v) in &truth.measurements_mm {
         assert!(
-            (again[k] - v).abs() < 0.05,
+            (again[k] - v).abs() < 1e-9,
             "{k}: stored {v} mm, re-measured {} mm",
             again[k]
         );
     }
     let b = mesh.bounds().unwrap();
     assert!(
-        (b.size().y - truth.subject.stature_m).abs() < 1e-3,
+        (b.size().y * 1000.0 - truth.measurements_mm["stature"]).abs() < 0.01,
         "stature of mesh.obj"
     );
     assert!(b.min.y.abs() < 1e-6, "soles on the floor");

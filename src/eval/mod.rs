@@ -57,6 +57,15 @@ pub struct FitResult {
 }
 
 impl FitResult {
+    /// A fit held in memory (e.g. from `replay`), without masks.
+    pub fn new(avatar: TriMesh, report_json: serde_json::Value) -> FitResult {
+        FitResult {
+            avatar,
+            report_json,
+            masks_dir: None,
+        }
+    }
+
     /// Loads `dir/avatar.obj` and `dir/report.json`.
     pub fn load(dir: &Path) -> Result<FitResult, EvalError> {
         let avatar = read_obj(&dir.join("avatar.obj"), None)?;
@@ -264,6 +273,11 @@ fn timings(report: &serde_json::Value) -> BTreeMap<String, StageTiming> {
     out
 }
 
+/// Area of a loop's bounding box (loops left open by small holes still count).
+fn box_area(l: &crate::mesh::section::SectionLoop) -> f64 {
+    crate::synth::subject::loop_box_area(l)
+}
+
 /// Largest-section hull perimeter against height for both bodies, from just above the
 /// soles to just below the top of the true body.
 pub fn girth_profile(truth: &TriMesh, fitted: &TriMesh) -> Vec<ProfileSample> {
@@ -273,8 +287,8 @@ pub fn girth_profile(truth: &TriMesh, fitted: &TriMesh) -> Vec<ProfileSample> {
     let girth = |m: &TriMesh, y: f64| -> Option<f64> {
         slice(m, &Plane::horizontal(y))
             .into_iter()
-            .filter(|l| l.closed && l.points.len() > 2)
-            .max_by(|a, b| a.area().total_cmp(&b.area()))
+            .filter(|l| l.points.len() > 2)
+            .max_by(|a, b| box_area(a).total_cmp(&box_area(b)))
             .map(|l| hull_perimeter(&l.points) * 1000.0)
     };
     (0..PROFILE_SAMPLES)

@@ -78,7 +78,7 @@ pub enum SynthError {
     #[error("{0}")]
     Subject(#[from] subject::SubjectError),
     #[error("{0}")]
-    Measure(#[from] subject::MeasureError),
+    Measure(#[from] crate::measure::MeasureError),
     #[error("{0}")]
     Recording(#[from] RecordingError),
     #[error("{path}: {source}")]
@@ -436,23 +436,43 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
     let stature = canonical
         .bounds()
         .map(|b| b.size().y)
-        .unwrap_or(cfg.subject.stature_m);
+        .ok_or_else(|| SynthError::Invalid("the body mesh is empty".into()))?;
     let calib = sample_station(cfg.seed, &cfg.cameras, stature);
     let mut rng = SplitMix64::stream(cfg.seed, 0x5C);
     let scene = Scene::random(&mut rng, [&calib.front, &calib.side]);
     let placement = Placement::sample(&mut rng);
     let sway = Sway::sample(&mut rng);
-    let canonical_landmarks = subject::landmarks(&canonical);
-    let lm_y = |name: &str, fraction: f64| {
-        canonical_landmarks
-            .get(name)
-            .map_or(fraction * stature, |p| p[1])
-    };
-    let armpit_y = 0.5 * (lm_y("left_armpit", 0.72) + lm_y("right_armpit", 0.72));
-    let dress = Dress::new(&canonical, armpit_y, lm_y("crotch", 0.47));
+    // The body's skeleton and landmarks (method.md section 1) dress it and are truth.
+    let info = crate::body::prepare(&canonical)
+        .map_err(|e| SynthError::Invalid(format!("the body cannot be analysed: {e}")))?;
+    let mut canonical_landmarks = subject::template_landmarks(&info);
+    // The top of the head is the highest vertex (the skeleton's head-top joint is a
+    // proportion, not a surface point).
+    if let Some(top) = canonical
+        .positions
+        .iter()
+        .max_by(|a, b| a.y.total_cmp(&b.y))
+    {
+        canonical_landmarks.insert("head_top".into(), top.to_array());
+    }
+    let dress = Dress::new(&canonical, scene::Skeleton::from_template(&info));
     let mut truth_mesh = canonical.clone();
     truth_mesh.map_positions(|p| placement.apply(p));
+    let tdir = truth_dir(out);
     let measurements = if cfg.truth {
+        // The truth is the mesh as stored (OBJ keeps micrometres): write it, read it
+        // back, and measure and render that, so re-measuring mesh.obj gives truth.json.
+        std::fs::create_dir_all(&tdir).map_err(io_err(&tdir))?;
+        let obj = tdir.join("mesh.obj");
+        crate::mesh::io::write_obj(&obj, &truth_mesh)
+            .map_err(|e| SynthError::Invalid(e.to_string()))?;
+        let stored = crate::mesh::io::read_obj(&obj, None)
+            .map_err(|e| SynthError::Invalid(e.to_string()))?;
+        if stored.positions.len() == truth_mesh.positions.len()
+            && stored.triangles == truth_mesh.triangles
+        {
+            truth_mesh = stored;
+        }
         subject::measurements_mm(&truth_mesh)?
     } else {
         BTreeMap::new()
@@ -500,7 +520,6 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
         date: None,
     };
     let mut writer = RecordingWriter::with_meta(out, &calib, cfg.format, meta)?;
-    let tdir = truth_dir(out);
     if cfg.truth {
         for v in View::BOTH {
             let d = tdir.join("masks").join(v.name());
@@ -609,12 +628,10 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
     }
     writer.finish()?;
     if cfg.truth {
-        crate::mesh::io::write_obj(&tdir.join("mesh.obj"), &truth_mesh)
-            .map_err(|e| SynthError::Invalid(e.to_string()))?;
         let truth = Truth {
             format: "fitstation-synth-truth/1".into(),
             seed: cfg.seed,
-            subject: cfg.subject,
+            subject: cfg.subject.clone(),
             body_source: body.source,
             placement,
             sway,
@@ -663,6 +680,7 @@ pub struct SubjectOptions {
     /// 0 = female .. 1 = male, or "female"/"male".
     #[arg(long)]
     pub gender: Option<String>,
+    /// Age in years (the library's adults: 25 to 90; younger is taken as 25).
     #[arg(long)]
     pub age_years: Option<f64>,
     /// 0..1.
@@ -671,18 +689,21 @@ pub struct SubjectOptions {
     /// 0..1 (0.5 average).
     #[arg(long)]
     pub weight: Option<f64>,
-    /// Stature in metres.
+    /// MakeHuman's height slider, 0..1 (0.5 average; its ends are extreme).
     #[arg(long)]
-    pub stature_m: Option<f64>,
-    /// 0..1.
+    pub height: Option<f64>,
+    /// 0..1 (0 uncommon .. 1 ideal proportions).
     #[arg(long)]
     pub proportions: Option<f64>,
+    /// Rescale the body uniformly to this stature, metres.
+    #[arg(long)]
+    pub stature_m: Option<f64>,
 }
 
 impl SubjectOptions {
     fn apply(&self, mut p: SubjectParams) -> anyhow::Result<SubjectParams> {
         if let Some(g) = &self.gender {
-            p.gender = match g.to_ascii_lowercase().as_str() {
+            p.shape.gender = match g.to_ascii_lowercase().as_str() {
                 "female" | "f" => 0.0,
                 "male" | "m" => 1.0,
                 v => v
@@ -706,22 +727,23 @@ impl SubjectOptions {
             }
             Ok(())
         };
-        unit("muscle", self.muscle, &mut p.muscle)?;
-        unit("weight", self.weight, &mut p.weight)?;
-        unit("proportions", self.proportions, &mut p.proportions)?;
+        unit("muscle", self.muscle, &mut p.shape.muscle)?;
+        unit("weight", self.weight, &mut p.shape.weight)?;
+        unit("height", self.height, &mut p.shape.height)?;
+        unit("proportions", self.proportions, &mut p.shape.proportions)?;
         if let Some(a) = self.age_years {
             anyhow::ensure!(
                 (1.0..=100.0).contains(&a),
                 "--age-years must be in 1..100, got {a}"
             );
-            p.age_years = a;
+            p.shape.age_years = a;
         }
         if let Some(s) = self.stature_m {
             anyhow::ensure!(
                 (1.2..=2.2).contains(&s),
                 "--stature-m must be in 1.2..2.2 m, got {s}"
             );
-            p.stature_m = s;
+            p.stature_m = Some(s);
         }
         Ok(p)
     }
@@ -826,15 +848,14 @@ pub struct SynthSetArgs {
 }
 
 /// The subject of member `i` of an evaluation set: alternating genders, builds spread
-/// over the weight range, other parameters from the seed.
+/// over the weight range, other parameters (age, muscle, height, proportions) drawn by
+/// the shape library from the seed.
 pub fn set_member(first_seed: u64, i: usize, count: usize) -> SynthConfig {
     let seed = first_seed + i as u64;
     let mut cfg = SynthConfig::from_seed(seed);
-    cfg.subject.gender = if i.is_multiple_of(2) { 0.0 } else { 1.0 };
+    cfg.subject.shape.gender = if i.is_multiple_of(2) { 0.0 } else { 1.0 };
     let pairs = count.div_ceil(2).max(1);
-    cfg.subject.weight = 0.1 + 0.8 * ((i / 2) as f64 + 0.5) / pairs as f64;
-    cfg.subject.stature_m = if i.is_multiple_of(2) { 1.63 } else { 1.76 }
-        + 0.06 * SplitMix64::stream(seed, 0x57).normal();
+    cfg.subject.shape.weight = 0.1 + 0.8 * ((i / 2) as f64 + 0.5) / pairs as f64;
     cfg
 }
 

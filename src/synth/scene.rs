@@ -546,29 +546,79 @@ pub enum Material {
     Shoes,
 }
 
-/// Height bins of the dressing table, metres.
-const DRESS_BIN_M: f64 = 0.01;
-/// Points this far outside the torso/legs section still count as torso, metres.
-const DRESS_CORE_MARGIN_M: f64 = 0.004;
+/// The bones a body is dressed by (canonical frame, metres): torso axis, legs and
+/// arms as joint chains, from the body's skeleton (`crate::body::prepare`, method.md
+/// section 1 step 7).
+#[derive(Debug, Clone)]
+pub struct Skeleton {
+    /// Hip joint to neck joint.
+    pub torso: [DVec3; 2],
+    /// Thigh root, knee, ankle (left, right).
+    pub legs: [[DVec3; 3]; 2],
+    /// Shoulder, elbow, wrist, hand (left, right).
+    pub arms: [[DVec3; 4]; 2],
+    /// Height below which the head and neck end (the neck cut).
+    pub neck_cut_y: f64,
+    pub crotch_y: f64,
+    pub armpit_y: f64,
+}
 
-/// How a body is dressed, from its own geometry (canonical frame: soles at y = 0,
-/// centred on x = 0, facing +Z): per height bin, the x-extent of its core (the largest
-/// section, plus the two legs below the crotch); what lies outside the core is an arm
-/// or a hand.
+impl Skeleton {
+    /// The skeleton of a prepared template body.
+    pub fn from_template(info: &crate::body::TemplateInfo) -> Skeleton {
+        let j = &info.joints;
+        let l = &info.landmarks;
+        Skeleton {
+            torso: [j.hip, j.neck],
+            legs: [
+                [j.thigh_root_left, j.knee_left, j.ankle_left],
+                [j.thigh_root_right, j.knee_right, j.ankle_right],
+            ],
+            arms: [
+                [j.shoulder_left, j.elbow_left, j.wrist_left, j.hand_left],
+                [j.shoulder_right, j.elbow_right, j.wrist_right, j.hand_right],
+            ],
+            neck_cut_y: l.neck_cut_y,
+            crotch_y: l.crotch_y,
+            armpit_y: l.armpit_y,
+        }
+    }
+}
+
+/// Distance from `p` to segment [a, b] and the segment parameter of the closest point.
+fn segment_distance(p: DVec3, a: DVec3, b: DVec3) -> (f64, f64) {
+    let ab = b - a;
+    let t = ((p - a).dot(ab) / ab.length_squared().max(1e-12)).clamp(0.0, 1.0);
+    ((a + ab * t - p).length(), t)
+}
+
+/// Which part of the body a point belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum BodyPart {
+    Head,
+    Torso,
+    Leg,
+    /// `upper` = on the upper arm (shoulder to elbow) within `sleeve` of its length.
+    Arm {
+        sleeve: bool,
+    },
+}
+
+/// Fraction of the upper arm a short sleeve covers.
+const SLEEVE_OF_UPPER_ARM: f64 = 0.45;
+/// The top ends this fraction of the crotch-armpit span above the crotch.
+const HEM_OF_SPAN: f64 = 0.25;
+
+/// How a body is dressed: each surface point goes to its nearest bone.
 #[derive(Debug, Clone)]
 pub struct Dress {
     pub stature_m: f64,
     pub head_centre_z: f64,
-    pub armpit_y: f64,
-    pub crotch_y: f64,
-    core: Vec<Option<(f64, f64)>>,
+    pub skeleton: Skeleton,
 }
 
 impl Dress {
-    /// Builds the dressing table of a canonical body; `armpit_y` and `crotch_y` are its
-    /// landmark heights.
-    pub fn new(mesh: &crate::mesh::TriMesh, armpit_y: f64, crotch_y: f64) -> Dress {
-        use crate::mesh::section::{slice, Plane};
+    pub fn new(mesh: &crate::mesh::TriMesh, skeleton: Skeleton) -> Dress {
         let (h, head_centre_z) = match mesh.bounds() {
             Some(b) => {
                 let h = b.size().y;
@@ -582,66 +632,67 @@ impl Dress {
             }
             None => (1.0, 0.0),
         };
-        let bins = (h / DRESS_BIN_M).ceil() as usize + 1;
-        let core = (0..bins)
-            .map(|i| {
-                let y = (i as f64 + 0.5) * DRESS_BIN_M;
-                let mut loops: Vec<_> = slice(mesh, &Plane::horizontal(y))
-                    .into_iter()
-                    .filter(|l| l.closed)
-                    .collect();
-                loops.sort_by(|a, b| b.area().total_cmp(&a.area()));
-                let keep = if y < crotch_y { 2 } else { 1 };
-                let mut ext: Option<(f64, f64)> = None;
-                for l in loops.iter().take(keep) {
-                    for p in &l.points {
-                        ext = Some(ext.map_or((p.x, p.x), |(a, b)| (a.min(p.x), b.max(p.x))));
-                    }
-                }
-                ext
-            })
-            .collect();
         Dress {
             stature_m: h,
             head_centre_z,
-            armpit_y,
-            crotch_y,
-            core,
+            skeleton,
         }
     }
 
-    fn in_core(&self, p: DVec3) -> bool {
-        let i = (p.y / DRESS_BIN_M).floor().max(0.0) as usize;
-        match self.core.get(i).copied().flatten() {
-            Some((x0, x1)) => p.x > x0 - DRESS_CORE_MARGIN_M && p.x < x1 + DRESS_CORE_MARGIN_M,
-            None => true,
+    /// The body part of canonical point `p`: above the neck cut the head, else the bone
+    /// (torso axis, leg or arm chain) nearest to it.
+    pub fn part(&self, p: DVec3) -> BodyPart {
+        let sk = &self.skeleton;
+        if p.y > sk.neck_cut_y {
+            return BodyPart::Head;
         }
+        let mut best = (
+            segment_distance(p, sk.torso[0], sk.torso[1]).0,
+            BodyPart::Torso,
+        );
+        for leg in &sk.legs {
+            for w in leg.windows(2) {
+                let d = segment_distance(p, w[0], w[1]).0;
+                if d < best.0 {
+                    best = (d, BodyPart::Leg);
+                }
+            }
+        }
+        for arm in &sk.arms {
+            for (k, w) in arm.windows(2).enumerate() {
+                let (d, t) = segment_distance(p, w[0], w[1]);
+                if d < best.0 {
+                    best = (
+                        d,
+                        BodyPart::Arm {
+                            sleeve: k == 0 && t < SLEEVE_OF_UPPER_ARM,
+                        },
+                    );
+                }
+            }
+        }
+        best.1
     }
 
-    /// The material at canonical point `p`: a short-sleeved top, full-length leggings,
-    /// shoes, hair on the crown, skin elsewhere (fractions of stature for the neck,
-    /// waistband and shoe line, adult proportions).
+    /// The material at canonical point `p`: a short-sleeved top down to the hips,
+    /// full-length leggings, shoes, hair on the crown, skin elsewhere.
     pub fn material(&self, p: DVec3) -> Material {
+        let sk = &self.skeleton;
         let h = self.stature_m;
-        let y = p.y / h;
-        if y > 0.935 && p.z < self.head_centre_z + 0.03 {
-            Material::Hair
-        } else if y > 0.845 {
-            Material::Skin
-        } else if y > 0.50 {
-            if self.in_core(p) || p.y > self.armpit_y - 0.05 * h {
-                Material::Shirt
-            } else {
-                Material::Skin
+        let hem_y = sk.crotch_y + HEM_OF_SPAN * (sk.armpit_y - sk.crotch_y);
+        match self.part(p) {
+            BodyPart::Head => {
+                if p.y > 0.935 * h && p.z < self.head_centre_z + 0.03 {
+                    Material::Hair
+                } else {
+                    Material::Skin
+                }
             }
-        } else if y > 0.035 {
-            if self.in_core(p) {
-                Material::Leggings
-            } else {
-                Material::Skin
-            }
-        } else {
-            Material::Shoes
+            BodyPart::Arm { sleeve: true } => Material::Shirt,
+            BodyPart::Arm { sleeve: false } => Material::Skin,
+            BodyPart::Torso if p.y > hem_y => Material::Shirt,
+            BodyPart::Torso | BodyPart::Leg if p.y < 0.035 * h => Material::Shoes,
+            BodyPart::Torso | BodyPart::Leg => Material::Leggings,
         }
     }
 }

