@@ -699,10 +699,7 @@ fn trace_person(
     );
     contour::resample_closed(&state.chain_f, CHAIN_SPACING_PX, &mut state.resampled);
     let model = &state.model;
-    let (w, h) = (frame.width() as i64, frame.height() as i64);
-    let score = |x: i64, y: i64| -> f32 {
-        model.distance(frame, x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)
-    };
+    let score = |x: i64, y: i64| -> f32 { model.distance_clamped(frame, x, y) };
     contour::refine_subpixel(
         &mut state.resampled,
         &score,

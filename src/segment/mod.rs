@@ -29,7 +29,7 @@ use image::RgbImage;
 /// Subsampling factor of the coarse grid.
 pub const COARSE: u32 = 2;
 /// Rows of the model updated per frame: one in `ADAPT_ROW_STRIDE`.
-const ADAPT_ROW_STRIDE: u64 = 16;
+const ADAPT_ROW_STRIDE: u64 = 32;
 /// Margin around the person's box (pixels) kept out of adaptation.
 const ADAPT_MARGIN_PX: u32 = 24;
 /// Sensor noise assumed when the model was learned from a single frame (8-bit units).
@@ -396,7 +396,7 @@ impl BackgroundModel {
             e_q8: m.map(|v| (v * COLOR_Q + 0.5) as u16),
             tau2: tau2_q,
         };
-        if x % COARSE as usize == 0 && y % COARSE as usize == 0 {
+        if x.is_multiple_of(COARSE as usize) && y.is_multiple_of(COARSE as usize) {
             let cw = (self.width as usize).div_ceil(COARSE as usize);
             let k = (y / COARSE as usize) * cw + x / COARSE as usize;
             let c = &mut self.coarse_model;
@@ -434,6 +434,23 @@ impl BackgroundModel {
             && (chroma_ee > ck * tau2 * ee
                 || de < (o.shadow_min_brightness - 1.0) * ee
                 || de > (o.highlight_max_brightness - 1.0) * ee)
+    }
+
+    /// Colour distance to the model of the pixel nearest (x, y) inside the frame (8-bit
+    /// units): the sub-pixel edge score. 0 when the frame does not fit the model.
+    #[inline]
+    pub fn distance_clamped(&self, frame: &RgbImage, x: i64, y: i64) -> f32 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let p = frame.as_raw();
+        if w == 0 || h == 0 || p.len() != self.px.len() * 3 {
+            return 0.0;
+        }
+        let i = (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize;
+        let e = self.px[i].color();
+        let dr = p[3 * i] as f32 - e[0];
+        let dg = p[3 * i + 1] as f32 - e[1];
+        let db = p[3 * i + 2] as f32 - e[2];
+        (dr * dr + dg * dg + db * db).sqrt()
     }
 
     /// Colour distance of a pixel to the model (8-bit units): the sub-pixel edge score.
