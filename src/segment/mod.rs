@@ -889,6 +889,54 @@ mod tests {
         assert!(!st.touches.bottom);
     }
 
+    fn scaled(img: &RgbImage, gain: f32) -> RgbImage {
+        let mut out = img.clone();
+        for p in out.pixels_mut() {
+            p.0 =
+                p.0.map(|v| (v as f32 * gain).round().clamp(0.0, 255.0) as u8);
+        }
+        out
+    }
+
+    #[test]
+    fn the_model_follows_a_slow_light_drift_where_nobody_is() {
+        let (w, h) = (120, 100);
+        let opts = SegmentOptions {
+            adapt_rate: 1.0,
+            ..Default::default()
+        };
+        let mut adaptive = BackgroundModel::new(w, h, opts);
+        let mut fixed = BackgroundModel::new(
+            w,
+            h,
+            SegmentOptions {
+                adapt_rate: 0.0,
+                ..opts
+            },
+        );
+        let empty = scene(w, h, false, false, 3);
+        adaptive.learn(&empty).unwrap();
+        fixed.learn(&empty).unwrap();
+        let mut mask = Mask::new(1, 1);
+        // Light rising in steps each within the brightness tolerance, a full sweep of
+        // the adaptation's rows per step.
+        for gain in [1.15f32, 1.32, 1.5] {
+            for _ in 0..ADAPT_ROW_STRIDE {
+                adaptive.segment(&scaled(&empty, gain), &mut mask).unwrap();
+            }
+        }
+        let bright = scaled(&scene(w, h, true, false, 4), 1.5);
+        let st = adaptive.segment(&bright, &mut mask).unwrap();
+        let box_ = st.person_box.unwrap();
+        assert!(
+            box_.min_x >= 36 && box_.max_x <= 74 && box_.min_y >= 16 && box_.max_y <= 94,
+            "{box_:?}"
+        );
+        // Without adaptation the whole brighter frame is foreground.
+        let st = fixed.segment(&bright, &mut mask).unwrap();
+        assert!(st.person_px > (w * h) as u64 / 2, "{}", st.person_px);
+    }
+
     #[test]
     fn empty_scene_gives_no_person() {
         let (w, h) = (120, 100);
