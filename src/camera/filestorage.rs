@@ -12,29 +12,47 @@ use std::path::Path;
 #[derive(Debug, Clone, PartialEq)]
 pub enum Node {
     Scalar(String),
-    Matrix { rows: usize, cols: usize, data: Vec<f64> },
+    Matrix {
+        rows: usize,
+        cols: usize,
+        data: Vec<f64>,
+    },
     /// Anything else (nested maps, sequences): its raw text.
     Other(String),
 }
 
 fn ferr(file: &str, msg: impl Into<String>) -> CameraError {
-    CameraError::File { file: file.to_string(), msg: msg.into() }
+    CameraError::File {
+        file: file.to_string(),
+        msg: msg.into(),
+    }
 }
 
 /// Parses FileStorage YAML text into top-level nodes. `file` names the source in errors.
 pub fn parse(text: &str, file: &str) -> Result<BTreeMap<String, Node>, CameraError> {
     let mut out = BTreeMap::new();
     let lines: Vec<&str> = text.lines().collect();
-    let first = lines.iter().find(|l| !l.trim().is_empty()).copied().unwrap_or("");
+    let first = lines
+        .iter()
+        .find(|l| !l.trim().is_empty())
+        .copied()
+        .unwrap_or("");
     if !first.trim_start().starts_with("%YAML") {
-        return Err(ferr(file, "not an OpenCV FileStorage YAML file (first line should be %YAML:1.0)"));
+        return Err(ferr(
+            file,
+            "not an OpenCV FileStorage YAML file (first line should be %YAML:1.0)",
+        ));
     }
     let mut i = 0;
     while i < lines.len() {
         let raw = lines[i];
         let line = strip_comment(raw);
         i += 1;
-        if line.trim().is_empty() || line.starts_with('%') || line.trim() == "---" || line.trim() == "..." {
+        if line.trim().is_empty()
+            || line.starts_with('%')
+            || line.trim() == "---"
+            || line.trim() == "..."
+        {
             continue;
         }
         if line.starts_with(' ') || line.starts_with('\t') {
@@ -48,12 +66,19 @@ pub fn parse(text: &str, file: &str) -> Result<BTreeMap<String, Node>, CameraErr
         if rest.starts_with("!!opencv-matrix") {
             // Gather the indented block.
             let mut block = String::new();
-            while i < lines.len() && (lines[i].starts_with(' ') || lines[i].starts_with('\t') || lines[i].trim().is_empty()) {
+            while i < lines.len()
+                && (lines[i].starts_with(' ')
+                    || lines[i].starts_with('\t')
+                    || lines[i].trim().is_empty())
+            {
                 block.push_str(strip_comment(lines[i]));
                 block.push('\n');
                 i += 1;
             }
-            out.insert(key.clone(), parse_matrix(&block).map_err(|m| ferr(file, format!("{key}: {m}")))?);
+            out.insert(
+                key.clone(),
+                parse_matrix(&block).map_err(|m| ferr(file, format!("{key}: {m}")))?,
+            );
         } else if rest.is_empty() {
             let mut block = String::new();
             while i < lines.len() && (lines[i].starts_with(' ') || lines[i].starts_with('\t')) {
@@ -104,7 +129,10 @@ fn parse_matrix(block: &str) -> Result<Node, String> {
     }
     let rows = rows.ok_or("matrix without rows")?;
     let cols = cols.ok_or("matrix without cols")?;
-    let inner = data_text.trim().trim_start_matches('[').trim_end_matches(']');
+    let inner = data_text
+        .trim()
+        .trim_start_matches('[')
+        .trim_end_matches(']');
     let data: Result<Vec<f64>, _> = inner
         .split(',')
         .map(|s| s.trim())
@@ -113,7 +141,10 @@ fn parse_matrix(block: &str) -> Result<Node, String> {
         .collect();
     let data = data?;
     if rows > 64 || cols > 64 || data.len() != rows * cols {
-        return Err(format!("matrix is {rows}x{cols} but holds {} numbers", data.len()));
+        return Err(format!(
+            "matrix is {rows}x{cols} but holds {} numbers",
+            data.len()
+        ));
     }
     if data.iter().any(|v| !v.is_finite()) {
         return Err("matrix holds a non-finite number".into());
@@ -121,10 +152,25 @@ fn parse_matrix(block: &str) -> Result<Node, String> {
     Ok(Node::Matrix { rows, cols, data })
 }
 
-fn matrix<'a>(nodes: &'a BTreeMap<String, Node>, key: &str, rows: usize, cols: usize, file: &str) -> Result<&'a [f64], CameraError> {
+fn matrix<'a>(
+    nodes: &'a BTreeMap<String, Node>,
+    key: &str,
+    rows: usize,
+    cols: usize,
+    file: &str,
+) -> Result<&'a [f64], CameraError> {
     match nodes.get(key) {
-        Some(Node::Matrix { rows: r, cols: c, data }) if r * c == rows * cols && (*r == rows || *r == cols) => Ok(data),
-        Some(Node::Matrix { rows: r, cols: c, .. }) => Err(ferr(file, format!("{key} is {r}x{c}, expected {rows}x{cols}"))),
+        Some(Node::Matrix {
+            rows: r,
+            cols: c,
+            data,
+        }) if r * c == rows * cols && (*r == rows || *r == cols) => Ok(data),
+        Some(Node::Matrix {
+            rows: r, cols: c, ..
+        }) => Err(ferr(
+            file,
+            format!("{key} is {r}x{c}, expected {rows}x{cols}"),
+        )),
         Some(_) => Err(ferr(file, format!("{key} is not an !!opencv-matrix"))),
         None => Err(ferr(file, format!("missing key {key}"))),
     }
@@ -143,17 +189,34 @@ fn int(nodes: &BTreeMap<String, Node>, key: &str, file: &str) -> Result<u32, Cam
 
 fn camera(nodes: &BTreeMap<String, Node>, prefix: &str, file: &str) -> Result<Camera, CameraError> {
     let k = matrix(nodes, &format!("{prefix}_camera_matrix"), 3, 3, file)?;
-    let d = matrix(nodes, &format!("{prefix}_distortion_coefficients"), 1, 5, file)?;
+    let d = matrix(
+        nodes,
+        &format!("{prefix}_distortion_coefficients"),
+        1,
+        5,
+        file,
+    )?;
     let r = matrix(nodes, &format!("{prefix}_rotation"), 3, 3, file)?;
     let t = matrix(nodes, &format!("{prefix}_translation"), 3, 1, file)?;
     let rotation = DMat3::from_cols_array(&[r[0], r[3], r[6], r[1], r[4], r[7], r[2], r[5], r[8]]);
     // Reject a rotation that is not one (a pasted matrix in the wrong place).
     let should_be_i = rotation * rotation.transpose();
-    if (should_be_i - DMat3::IDENTITY).to_cols_array().iter().any(|e| e.abs() > 1e-3) || rotation.determinant() < 0.0 {
-        return Err(ferr(file, format!("{prefix}_rotation is not a rotation matrix")));
+    if (should_be_i - DMat3::IDENTITY)
+        .to_cols_array()
+        .iter()
+        .any(|e| e.abs() > 1e-3)
+        || rotation.determinant() < 0.0
+    {
+        return Err(ferr(
+            file,
+            format!("{prefix}_rotation is not a rotation matrix"),
+        ));
     }
     if k[0] <= 0.0 || k[4] <= 0.0 {
-        return Err(ferr(file, format!("{prefix}_camera_matrix has a non-positive focal length")));
+        return Err(ferr(
+            file,
+            format!("{prefix}_camera_matrix has a non-positive focal length"),
+        ));
     }
     Ok(Camera {
         intrinsics: Intrinsics {
@@ -165,12 +228,21 @@ fn camera(nodes: &BTreeMap<String, Node>, prefix: &str, file: &str) -> Result<Ca
             cy: k[5],
             dist: [d[0], d[1], d[2], d[3], d[4]],
         },
-        camera_from_station: Rigid { rotation, translation: DVec3::new(t[0], t[1], t[2]) },
+        camera_from_station: Rigid {
+            rotation,
+            translation: DVec3::new(t[0], t[1], t[2]),
+        },
     })
 }
 
-const KNOWN_SUFFIXES: [&str; 6] =
-    ["_image_width", "_image_height", "_camera_matrix", "_distortion_coefficients", "_rotation", "_translation"];
+const KNOWN_SUFFIXES: [&str; 6] = [
+    "_image_width",
+    "_image_height",
+    "_camera_matrix",
+    "_distortion_coefficients",
+    "_rotation",
+    "_translation",
+];
 
 impl StationCalibration {
     /// Parses `station.yaml` text.
@@ -181,7 +253,9 @@ impl StationCalibration {
         let extra = nodes
             .iter()
             .filter(|(k, _)| {
-                !(["front", "side"].iter().any(|p| KNOWN_SUFFIXES.iter().any(|s| **k == format!("{p}{s}"))))
+                !(["front", "side"]
+                    .iter()
+                    .any(|p| KNOWN_SUFFIXES.iter().any(|s| **k == format!("{p}{s}"))))
             })
             .filter_map(|(k, v)| match v {
                 Node::Scalar(s) => Some((k.clone(), s.clone())),
@@ -203,11 +277,17 @@ impl StationCalibration {
         let mut s = String::from("%YAML:1.0\n---\n");
         for (prefix, cam) in [("front", &self.front), ("side", &self.side)] {
             let i = &cam.intrinsics;
-            s += &format!("{prefix}_image_width: {}\n{prefix}_image_height: {}\n", i.width, i.height);
+            s += &format!(
+                "{prefix}_image_width: {}\n{prefix}_image_height: {}\n",
+                i.width, i.height
+            );
             s += &mat_node(&format!("{prefix}_camera_matrix"), 3, 3, &i.k_rows());
             s += &mat_node(&format!("{prefix}_distortion_coefficients"), 1, 5, &i.dist);
             let r = cam.camera_from_station.rotation;
-            let rows = [r.x_axis.x, r.y_axis.x, r.z_axis.x, r.x_axis.y, r.y_axis.y, r.z_axis.y, r.x_axis.z, r.y_axis.z, r.z_axis.z];
+            let rows = [
+                r.x_axis.x, r.y_axis.x, r.z_axis.x, r.x_axis.y, r.y_axis.y, r.z_axis.y, r.x_axis.z,
+                r.y_axis.z, r.z_axis.z,
+            ];
             s += &mat_node(&format!("{prefix}_rotation"), 3, 3, &rows);
             let t = cam.camera_from_station.translation;
             s += &mat_node(&format!("{prefix}_translation"), 3, 1, &[t.x, t.y, t.z]);
@@ -231,7 +311,10 @@ impl StationCalibration {
 /// One `!!opencv-matrix` node with doubles printed round-trip exact.
 pub fn mat_node(key: &str, rows: usize, cols: usize, data: &[f64]) -> String {
     let nums: Vec<String> = data.iter().map(|v| fmt_double(*v)).collect();
-    format!("{key}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n", nums.join(", "))
+    format!(
+        "{key}: !!opencv-matrix\n   rows: {rows}\n   cols: {cols}\n   dt: d\n   data: [ {} ]\n",
+        nums.join(", ")
+    )
 }
 
 /// Shortest round-trip representation that YAML/OpenCV read as a double.
@@ -263,8 +346,17 @@ mod tests {
     fn reads_opencv_multiline_matrices() {
         let text = "%YAML:1.0\n---\nfront_image_width: 1280\nfront_image_height: 720\nfront_camera_matrix: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1.1e+03, 0., 6.4e+02, 0.,\n       1.1e+03, 3.6e+02, 0., 0., 1. ]\nfront_distortion_coefficients: !!opencv-matrix\n   rows: 1\n   cols: 5\n   dt: d\n   data: [ 0., 0., 0., 0., 0. ]\nfront_rotation: !!opencv-matrix\n   rows: 3\n   cols: 3\n   dt: d\n   data: [ 1., 0., 0., 0., 1., 0., 0., 0., 1. ]\nfront_translation: !!opencv-matrix\n   rows: 3\n   cols: 1\n   dt: d\n   data: [ 0., 0., 3. ]\nboard: \"9x6\"\nnested:\n   a: 1\n";
         let nodes = parse(text, "x").unwrap();
-        assert!(matches!(nodes.get("front_camera_matrix"), Some(Node::Matrix { rows: 3, cols: 3, .. })));
-        let e = StationCalibration::from_yaml_str(text, "x.yaml").unwrap_err().to_string();
+        assert!(matches!(
+            nodes.get("front_camera_matrix"),
+            Some(Node::Matrix {
+                rows: 3,
+                cols: 3,
+                ..
+            })
+        ));
+        let e = StationCalibration::from_yaml_str(text, "x.yaml")
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("side_camera_matrix"), "{e}");
     }
 

@@ -79,7 +79,10 @@ impl Intrinsics {
                 n -= f;
                 continue;
             }
-            let step = DVec2::new((jy.y * f.x - jy.x * f.y) / det, (-jx.y * f.x + jx.x * f.y) / det);
+            let step = DVec2::new(
+                (jy.y * f.x - jy.x * f.y) / det,
+                (-jx.y * f.x + jx.x * f.y) / det,
+            );
             n -= step;
         }
         n
@@ -99,14 +102,20 @@ pub struct Rigid {
 }
 
 impl Rigid {
-    pub const IDENTITY: Rigid = Rigid { rotation: DMat3::IDENTITY, translation: DVec3::ZERO };
+    pub const IDENTITY: Rigid = Rigid {
+        rotation: DMat3::IDENTITY,
+        translation: DVec3::ZERO,
+    };
     #[inline]
     pub fn apply(&self, p: DVec3) -> DVec3 {
         self.rotation * p + self.translation
     }
     pub fn inverse(&self) -> Rigid {
         let rt = self.rotation.transpose();
-        Rigid { rotation: rt, translation: -(rt * self.translation) }
+        Rigid {
+            rotation: rt,
+            translation: -(rt * self.translation),
+        }
     }
     /// Builds the camera pose of a camera at `eye` looking at `target` with the image
     /// "up" toward `up` (OpenCV axes: y down in the image).
@@ -114,9 +123,12 @@ impl Rigid {
         let z = (target - eye).normalize();
         let x = z.cross(up).normalize(); // right
         let y = z.cross(x); // down
-        // Rows of R are the camera axes expressed in the station frame.
+                            // Rows of R are the camera axes expressed in the station frame.
         let rotation = DMat3::from_cols(x, y, z).transpose();
-        Rigid { rotation, translation: -(rotation * eye) }
+        Rigid {
+            rotation,
+            translation: -(rotation * eye),
+        }
     }
 }
 
@@ -146,7 +158,8 @@ impl Camera {
     /// Projects a station point to distorted pixels (None behind the camera).
     #[inline]
     pub fn project(&self, point_in_station: DVec3) -> Option<DVec2> {
-        self.intrinsics.project_camera_point(self.camera_from_station.apply(point_in_station))
+        self.intrinsics
+            .project_camera_point(self.camera_from_station.apply(point_in_station))
     }
     /// Projects without lens distortion (the undistorted image).
     #[inline]
@@ -173,7 +186,10 @@ impl Camera {
     /// The viewing ray through undistorted normalised coordinates.
     pub fn ray_through_normalized(&self, n: DVec2) -> Ray {
         let rt = self.camera_from_station.rotation.transpose();
-        Ray { origin: self.center_in_station(), dir: (rt * DVec3::new(n.x, n.y, 1.0)).normalize() }
+        Ray {
+            origin: self.center_in_station(),
+            dir: (rt * DVec3::new(n.x, n.y, 1.0)).normalize(),
+        }
     }
 }
 
@@ -229,7 +245,14 @@ impl StationCalibration {
 
     /// A default kiosk geometry (for synthetic recordings and tests): both cameras at
     /// `distance_m` from the mark at `height_m`, aimed at `aim_height_m`.
-    pub fn nominal(width: u32, height: u32, focal_px: f64, distance_m: f64, height_m: f64, aim_height_m: f64) -> Self {
+    pub fn nominal(
+        width: u32,
+        height: u32,
+        focal_px: f64,
+        distance_m: f64,
+        height_m: f64,
+        aim_height_m: f64,
+    ) -> Self {
         let intr = Intrinsics {
             width,
             height,
@@ -242,13 +265,25 @@ impl StationCalibration {
         let target = DVec3::new(0.0, aim_height_m, 0.0);
         let front = Camera {
             intrinsics: intr,
-            camera_from_station: Rigid::camera_looking_at(DVec3::new(0.0, height_m, distance_m), target, DVec3::Y),
+            camera_from_station: Rigid::camera_looking_at(
+                DVec3::new(0.0, height_m, distance_m),
+                target,
+                DVec3::Y,
+            ),
         };
         let side = Camera {
             intrinsics: intr,
-            camera_from_station: Rigid::camera_looking_at(DVec3::new(distance_m, height_m, 0.0), target, DVec3::Y),
+            camera_from_station: Rigid::camera_looking_at(
+                DVec3::new(distance_m, height_m, 0.0),
+                target,
+                DVec3::Y,
+            ),
         };
-        StationCalibration { front, side, extra: Vec::new() }
+        StationCalibration {
+            front,
+            side,
+            extra: Vec::new(),
+        }
     }
 }
 
@@ -256,7 +291,13 @@ impl StationCalibration {
 #[derive(Debug, thiserror::Error)]
 pub enum CameraError {
     #[error("{view} frames are {frame_w}x{frame_h} but the calibration is for {calib_w}x{calib_h}: recalibrate or use the station.yaml made for these cameras")]
-    FrameSize { view: &'static str, calib_w: u32, calib_h: u32, frame_w: u32, frame_h: u32 },
+    FrameSize {
+        view: &'static str,
+        calib_w: u32,
+        calib_h: u32,
+        frame_w: u32,
+        frame_h: u32,
+    },
     #[error("{file}: {msg}")]
     File { file: String, msg: String },
 }
@@ -277,7 +318,10 @@ mod tests {
         for &(u, v) in &[(0.0, 0.0), (640.0, 360.0), (1279.0, 719.0), (100.0, 600.0)] {
             let n = c.intrinsics.undistort_pixel(DVec2::new(u, v));
             let back = c.intrinsics.to_pixel(c.intrinsics.distort(n));
-            assert!((back - DVec2::new(u, v)).length() < 1e-8, "{u},{v} -> {back}");
+            assert!(
+                (back - DVec2::new(u, v)).length() < 1e-8,
+                "{u},{v} -> {back}"
+            );
         }
     }
 

@@ -205,7 +205,7 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
     // Header: text lines up to "end_header".
     let mut pos = 0usize;
     let mut line_no = 0usize;
-    let mut next_line = |pos: &mut usize| -> Option<String> {
+    let next_line = |pos: &mut usize| -> Option<String> {
         if *pos >= bytes.len() {
             return None;
         }

@@ -1,0 +1,93 @@
+//! Criterion benches of the deformers: encoding, a fast decode from rest, a warm refit
+//! and one paper-style sweep, on the MakeHuman body when present (the template stand-in),
+//! else on a generated cylinder. `fitstation bench deform` prints the same figures in one
+//! run, with the paper-style decode to convergence and the libigl peer.
+
+use criterion::{criterion_group, criterion_main, Criterion};
+use fitstation::deform::bench::{load_mesh, problem, rigid_parts, BenchArgs, MAKEHUMAN_BASE_OBJ};
+use fitstation::deform::{DecodeOptions, DecoderKind, MeanValueEncoding, MvcDeformer};
+use fitstation::mesh::{shapes, TriMesh};
+use std::hint::black_box;
+use std::path::Path;
+
+/// The MakeHuman body and its rigid extremities, or a cylinder without any.
+fn mesh() -> (TriMesh, Vec<Vec<u32>>) {
+    if Path::new(MAKEHUMAN_BASE_OBJ).exists() {
+        let args = BenchArgs {
+            mesh: None,
+            scale: 1.0,
+            out: std::env::temp_dir(),
+            no_libigl: true,
+            tol_m: 1e-4,
+            paper_max_sweeps: 1,
+            free_extremities: false,
+            repeats: 1,
+        };
+        if let (Ok(m), Ok(parts)) = (load_mesh(&args), rigid_parts(&args)) {
+            return (m, parts);
+        }
+    }
+    (
+        shapes::elliptic_cylinder(0.15, 0.1, 1.0, 120, 110),
+        Vec::new(),
+    )
+}
+
+fn deform(c: &mut Criterion) {
+    let (m, parts) = mesh();
+    let rings = m.one_rings();
+    let p = problem(&m, &parts);
+    c.bench_function("deform/encode", |b| {
+        b.iter(|| black_box(MeanValueEncoding::encode(&m, &rings)))
+    });
+
+    let opts = DecodeOptions {
+        max_iterations: 500,
+        ..Default::default()
+    };
+    let mut fast = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+    fast.set_controls(&p.controls).unwrap();
+    let mut pos = m.positions.clone();
+    c.bench_function("deform/fast_decode_from_rest", |b| {
+        b.iter(|| {
+            fast.reset_history();
+            pos.copy_from_slice(&m.positions);
+            black_box(fast.solve(&p.targets, &mut pos).unwrap())
+        })
+    });
+    // A two-frame sequence per iteration; only the second (the refit) is timed.
+    c.bench_function("deform/fast_warm_refit", |b| {
+        b.iter_custom(|iters| {
+            let mut total = std::time::Duration::ZERO;
+            for _ in 0..iters {
+                fast.reset_history();
+                pos.copy_from_slice(&m.positions);
+                fast.solve(&p.targets, &mut pos).unwrap();
+                let t = std::time::Instant::now();
+                black_box(fast.solve(&p.refit_targets, &mut pos).unwrap());
+                total += t.elapsed();
+            }
+            total
+        })
+    });
+
+    let one = DecodeOptions {
+        max_iterations: 1,
+        ..Default::default()
+    };
+    let mut paper = MvcDeformer::new(&m, DecoderKind::PaperIterative, one).unwrap();
+    paper.set_controls(&p.controls).unwrap();
+    c.bench_function("deform/paper_sweep", |b| {
+        b.iter(|| {
+            pos.copy_from_slice(&m.positions);
+            black_box(paper.solve(&p.targets, &mut pos).unwrap())
+        })
+    });
+}
+
+criterion_group! {
+    name = benches;
+    config = Criterion::default().sample_size(10);
+    targets = deform
+}
+criterion_main!(benches);

