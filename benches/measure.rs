@@ -53,8 +53,9 @@ fn bench(c: &mut Criterion) {
             ("stick", stick_body())
         }
     };
-    c.bench_function(&format!("measure_fresh_{name}"), |b| {
-        b.iter(|| measure(black_box(&body)))
+    // A new Measurer: edge table, index and buffers built from nothing.
+    c.bench_function(&format!("measure_new_measurer_{name}"), |b| {
+        b.iter(|| Measurer::new().measure(black_box(&body)))
     });
     // Per frame the template keeps its triangles and moves its vertices: alternate two
     // bodies so every call rebuilds the height index, as a fitted avatar would.
@@ -62,20 +63,27 @@ fn bench(c: &mut Criterion) {
     other.map_positions(|p| p * 1.01);
     let pair = [body.clone(), other];
     let mut measurer = Measurer::new();
+    let mut out = measurer.measure(&body).expect("bench body measures");
     let mut k = 0usize;
     c.bench_function(&format!("measure_per_frame_{name}"), |b| {
         b.iter(|| {
             k += 1;
-            measurer.measure(black_box(&pair[k % 2]))
+            measurer.measure_into(black_box(&pair[k % 2]), &mut out)
+        })
+    });
+    // The free function, per frame (its thread's cached Measurer).
+    c.bench_function(&format!("measure_fn_per_frame_{name}"), |b| {
+        b.iter(|| {
+            k += 1;
+            measure(black_box(&pair[k % 2]))
         })
     });
     let torso = LoopSelector::Torso { axis_x: 0.0 };
-    c.bench_function(&format!("girth_at_fresh_{name}"), |b| {
-        b.iter(|| girth_at(black_box(&body), 1.0, torso))
+    c.bench_function(&format!("girth_at_new_measurer_{name}"), |b| {
+        b.iter(|| Measurer::new().girth_at(black_box(&body), 1.0, torso))
     });
-    let mut measurer = Measurer::new();
     c.bench_function(&format!("girth_at_same_mesh_{name}"), |b| {
-        b.iter(|| measurer.girth_at(black_box(&body), 1.0, torso))
+        b.iter(|| girth_at(black_box(&body), 1.0, torso))
     });
 }
 

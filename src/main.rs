@@ -26,7 +26,7 @@ enum Command {
     /// Render a deterministic evaluation set of synthetic subjects.
     SynthSet(fitstation::synth::SynthSetArgs),
     /// Score fits of recordings against their ground truth.
-    Eval(fitstation::eval::EvalArgs),
+    Eval(fitstation::station::cli::EvalCmd),
     /// Time a pipeline stage on realistic inputs.
     Bench {
         #[command(subcommand)]
@@ -54,7 +54,7 @@ fn main() -> anyhow::Result<()> {
         Command::Templates(args) => fitstation::body::run(args)?,
         Command::Synth(args) => fitstation::synth::run(args)?,
         Command::SynthSet(args) => fitstation::synth::run_set(args)?,
-        Command::Eval(args) => fitstation::eval::run(args)?,
+        Command::Eval(args) => fitstation::station::cli::run_eval(&args)?,
         Command::Bench { what: BenchCommand::Deform(args) } => fitstation::deform::bench::run(args)?,
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
         Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,

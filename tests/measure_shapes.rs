@@ -259,6 +259,13 @@ fn measurer_reuse_gives_the_same_result() {
     let other = measurer.measure(&b.mesh).expect("b");
     assert!((other.levels.crotch_m - first.levels.crotch_m).abs() < 2e-3);
     assert_eq!(measurer.measure(&a.mesh).expect("a again"), first);
+    let mut out = other.clone();
+    measurer.measure_into(&a.mesh, &mut out).expect("a into");
+    assert_eq!(out, first);
+    // A failed measurement leaves the previous result untouched.
+    let no_arms = stick_body(false, 0.04);
+    assert!(measurer.measure_into(&no_arms.mesh, &mut out).is_err());
+    assert_eq!(out, first);
     assert_eq!(fitstation::measure::measure(&a.mesh).expect("fresh"), first);
 }
 
@@ -420,6 +427,71 @@ fn split_parts(mesh: &TriMesh) -> Vec<TriMesh> {
 }
 
 #[test]
+fn thighs_pressing_through_each_other_stay_two_legs() {
+    // A self-intersecting mesh, as a fit of heavy thighs can give: the leg prisms
+    // overlap by 4 cm (a quarter of a thigh's width) across the body axis.
+    let b = stick_body(true, -0.04);
+    let m = measure(&b.mesh).expect("body with overlapping thighs");
+    assert!(
+        (m.levels.crotch_m - b.crotch).abs() < 1e-3,
+        "crotch {}",
+        m.levels.crotch_m
+    );
+    for g in [m.thigh_girth_left_mm, m.thigh_girth_right_mm] {
+        assert!(
+            (g - 2e3 * PI * b.leg_r).abs() < GIRTH_TOL_M * 1e3,
+            "thigh {g}"
+        );
+    }
+}
+
+#[test]
+fn arms_joining_at_different_heights_give_the_lower_armpit() {
+    // The left arm joins the torso at the armpit (1.30 m), the right arm 4 cm higher:
+    // between the two, one prism holds the torso and the left arm.
+    let b = stick_body(true, 0.04);
+    let mut body = TriMesh::default();
+    for part in split_parts(&b.mesh) {
+        let lo = part
+            .positions
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min);
+        let x = part.positions.iter().map(|p| p.x).sum::<f64>() / part.positions.len() as f64;
+        if (lo - b.armpit).abs() < 1e-9 {
+            // Shoulders now start higher.
+            let (m, o) = ellipse_prism(0.30, 0.12, b.armpit + 0.04, 1.45, 0.0);
+            add(&mut body, m, o);
+        } else if (lo - 0.75).abs() < 1e-9 && x < 0.0 {
+            let (m, o) = ellipse_prism(0.04, 0.04, 0.75, b.armpit + 0.04, -0.25);
+            add(&mut body, m, o);
+        } else {
+            add(&mut body, part, DVec3::ZERO);
+        }
+    }
+    let (m, o) = ellipse_prism(0.23, 0.12, b.armpit, b.armpit + 0.04, 0.07);
+    add(&mut body, m, o);
+    let m = measure(&body).expect("body with uneven armpits");
+    assert!(
+        (m.levels.armpit_m - b.armpit).abs() < 1e-3,
+        "armpit {}",
+        m.levels.armpit_m
+    );
+    check_close(
+        "chest",
+        m.chest_girth_mm,
+        ramanujan(b.chest.0, b.chest.1) * 1e3,
+    );
+}
+
+fn check_close(what: &str, got_mm: f64, want_mm: f64) {
+    assert!(
+        (got_mm - want_mm).abs() < GIRTH_TOL_M * 1e3,
+        "{what}: {got_mm} mm vs {want_mm} mm"
+    );
+}
+
+#[test]
 fn shoulder_tops_beside_the_neck_are_not_armpits() {
     // Two small caps on the shoulders, separate from the neck: slices through them show
     // "two loops beside the torso" as arms do, but above them the torso narrows to the
@@ -458,4 +530,48 @@ fn not_a_standing_body_is_a_clear_error() {
     nan.positions[3].x = f64::NAN;
     assert!(matches!(measure(&nan), Err(MeasureError::InvalidMesh(_))));
     assert!(girth_at(&TriMesh::default(), 0.5, LoopSelector::Whole).is_none());
+}
+
+#[test]
+fn report_map_and_cli_on_the_stick_body() {
+    let b = stick_body(true, 0.04);
+    let m = measure(&b.mesh).expect("stick body");
+    let map = m.to_report_map();
+    let mut keys: Vec<&str> = map.keys().map(|k| k.as_str()).collect();
+    keys.sort_unstable();
+    assert_eq!(
+        keys,
+        [
+            "chest_girth",
+            "hip_girth",
+            "stature",
+            "thigh_girth_left",
+            "thigh_girth_right",
+            "waist_girth"
+        ]
+    );
+    assert_eq!(map["waist_girth"].as_f64(), Some(m.waist_girth_mm));
+    assert_eq!(map["stature"].as_f64(), Some(m.stature_mm));
+    // The command reads a mesh file and measures it; a cylinder is a clear error.
+    let dir = std::env::temp_dir().join(format!("fitstation_measure_cli_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).expect("temp dir");
+    let body_path = dir.join("stick.obj");
+    fitstation::mesh::io::write_obj(&body_path, &b.mesh).expect("write body");
+    for json in [false, true] {
+        fitstation::measure::run(fitstation::measure::MeasureArgs {
+            mesh: body_path.clone(),
+            json,
+        })
+        .expect("measure the stick body file");
+    }
+    let cyl_path = dir.join("cylinder.obj");
+    fitstation::mesh::io::write_obj(&cyl_path, &shapes::elliptic_cylinder(0.1, 0.1, 1.7, 4, 32))
+        .expect("write cylinder");
+    let err = fitstation::measure::run(fitstation::measure::MeasureArgs {
+        mesh: cyl_path,
+        json: false,
+    })
+    .expect_err("a cylinder is not a body");
+    assert!(format!("{err:#}").contains("no crotch"), "{err:#}");
+    std::fs::remove_dir_all(&dir).ok();
 }

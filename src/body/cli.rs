@@ -189,9 +189,16 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
                 lib.body_into(&ShapeLibrary::sample_adult(s), &mut buf);
             }
             let per = t1.elapsed().as_secs_f64() * 1e3 / n as f64;
+            let (mut lo, mut hi) = (f64::INFINITY, 0.0f64);
+            for s in 0..n {
+                lib.body_into(&ShapeLibrary::sample_adult(s), &mut buf);
+                let top = buf.iter().map(|v| v.y).fold(f64::NEG_INFINITY, f64::max);
+                lo = lo.min(top);
+                hi = hi.max(top);
+            }
             let t = lib.template();
             println!(
-                "{}: {} targets, {} vertices, {} triangles, template stature {:.3} m; load {load_ms:.0} ms, body_into {per:.2} ms per body (mean of {n})",
+                "{}: {} targets, {} vertices, {} triangles, template stature {:.3} m; load {load_ms:.0} ms, body_into {per:.2} ms per body (mean of {n}); sample_adult(0..{n}) statures {lo:.3}..{hi:.3} m",
                 lib.meta().source,
                 lib.target_count(),
                 t.mesh.vertex_count(),

@@ -150,6 +150,7 @@ fn read_obj_groups(path: &Path) -> Result<Obj, BodyError> {
 }
 
 /// One macro target file: sparse offsets (decimetres) keyed by base.obj vertex index.
+#[derive(Debug, Clone)]
 pub struct TargetFile {
     pub entries: Vec<(u32, DVec3)>,
 }
@@ -336,6 +337,12 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
                 s += obj.vertices[v as usize] * MAKEHUMAN_UNIT_M;
                 n += 1.0;
             }
+        }
+        if n == 0.0 {
+            return Err(BodyError::format(
+                &obj_path,
+                format!("helper group '{group}' has no faces"),
+            ));
         }
         Ok(s / n)
     };

@@ -130,6 +130,15 @@ fn put_str(out: &mut Vec<u8>, s: &str) {
 impl LibraryData {
     /// Serialises into the file format (magic + zlib stream).
     pub fn encode(&self) -> Vec<u8> {
+        let b = self.encode_raw();
+        let mut enc = flate2::write::ZlibEncoder::new(MAGIC.to_vec(), flate2::Compression::best());
+        // Writing into a Vec cannot fail.
+        let _ = enc.write_all(&b);
+        enc.finish().unwrap_or_default()
+    }
+
+    /// The uncompressed stream (see the module docs).
+    pub fn encode_raw(&self) -> Vec<u8> {
         let mut b = Vec::new();
         b.extend_from_slice(&VERSION.to_le_bytes());
         put_str(
@@ -170,16 +179,7 @@ impl LibraryData {
                 }
             }
         }
-        let mut out = MAGIC.to_vec();
-        let mut enc = flate2::write::ZlibEncoder::new(
-            out.split_off(MAGIC.len()),
-            flate2::Compression::best(),
-        );
-        // Writing into a Vec cannot fail.
-        let _ = enc.write_all(&b);
-        let body = enc.finish().unwrap_or_default();
-        out.extend_from_slice(&body);
-        out
+        b
     }
 
     /// Parses the file format. `file` names the source in errors.
@@ -200,8 +200,13 @@ impl LibraryData {
             .take(MAX_DECOMPRESSED)
             .read_to_end(&mut raw)
             .map_err(|e| BodyError::format(file, format!("corrupt compressed stream: {e}")))?;
+        Self::decode_raw(&raw, file)
+    }
+
+    /// Parses the decompressed stream (see [`LibraryData::decode`]).
+    pub fn decode_raw(raw: &[u8], file: &Path) -> Result<LibraryData, BodyError> {
         let mut r = Reader {
-            b: &raw,
+            b: raw,
             pos: 0,
             file,
             ctx: String::from("header"),
@@ -368,9 +373,14 @@ impl Reader<'_> {
 struct Target {
     factor: f64,
     keys: Vec<(usize, usize)>,
+    /// Vertex of each offset; empty for a dense target (one offset per vertex).
     indices: Vec<u32>,
     offsets: Vec<[f32; 3]>,
 }
+
+/// Targets touching more than this share of the vertices are expanded to dense arrays
+/// (no index per entry: less memory traffic per body).
+const DENSE_SHARE: f64 = 0.4;
 
 /// Which [`ShapeParams`] field drives a macro variable of the file (by its macro.json name).
 fn param_value(var: &str, p: &ShapeParams) -> Option<f64> {
@@ -408,6 +418,20 @@ impl ShapeLibrary {
             data.base.len(),
         )?;
         ShapeLibrary::from_data(data, Some(info), &file)
+    }
+
+    /// The embedded library, loaded once per process and shared (loading takes a few
+    /// hundred milliseconds; tests and tools that need it often should use this).
+    ///
+    /// # Errors
+    /// As [`ShapeLibrary::load_default`] (the message of the first failure).
+    pub fn shared() -> Result<&'static ShapeLibrary, BodyError> {
+        static SHARED: std::sync::OnceLock<Result<ShapeLibrary, String>> =
+            std::sync::OnceLock::new();
+        SHARED
+            .get_or_init(|| ShapeLibrary::load_default().map_err(|e| e.to_string()))
+            .as_ref()
+            .map_err(|m| BodyError::format(Path::new("templates"), m.clone()))
     }
 
     /// Loads `dir/makehuman-adult.fsl` and its sidecar `dir/makehuman-adult.template.json`
@@ -465,16 +489,29 @@ impl ShapeLibrary {
                 }
             }
             let q = QUANTUM_M as f32;
-            targets.push(Target {
-                factor: t.factor,
-                keys,
-                indices: t.indices.clone(),
-                offsets: t
-                    .offsets
-                    .iter()
-                    .map(|o| [o[0] as f32 * q, o[1] as f32 * q, o[2] as f32 * q])
-                    .collect(),
-            });
+            let scaled = |o: &[i32; 3]| [o[0] as f32 * q, o[1] as f32 * q, o[2] as f32 * q];
+            let nv = data.base.len();
+            if t.indices.len() as f64 > DENSE_SHARE * nv as f64 {
+                let mut dense = vec![[0.0f32; 3]; nv];
+                for (&i, o) in t.indices.iter().zip(&t.offsets) {
+                    if let Some(d) = dense.get_mut(i as usize) {
+                        *d = scaled(o);
+                    }
+                }
+                targets.push(Target {
+                    factor: t.factor,
+                    keys,
+                    indices: Vec::new(),
+                    offsets: dense,
+                });
+            } else {
+                targets.push(Target {
+                    factor: t.factor,
+                    keys,
+                    indices: t.indices.clone(),
+                    offsets: t.offsets.iter().map(scaled).collect(),
+                });
+            }
         }
         if data.meta.variables.len() > MAX_VARIABLES
             || data
@@ -486,7 +523,9 @@ impl ShapeLibrary {
             return Err(BodyError::format(file, "too many macro variables or knots"));
         }
         for v in &data.meta.variables {
-            if v.knots.windows(2).any(|w| !(w[1].value > w[0].value))
+            if v.knots
+                .windows(2)
+                .any(|w| w[1].value.partial_cmp(&w[0].value) != Some(std::cmp::Ordering::Greater))
                 || v.knots.iter().any(|k| !k.value.is_finite())
             {
                 return Err(BodyError::format(
@@ -501,6 +540,15 @@ impl ShapeLibrary {
             .map(|p| DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64) * QUANTUM_M)
             .collect();
         let mesh = TriMesh::new(base.clone(), data.triangles.clone());
+        mesh.validate().map_err(|m| BodyError::format(file, m))?;
+        if let Some(i) = &info {
+            if i.vertex_count != mesh.vertex_count() {
+                return Err(BodyError::format(
+                    file,
+                    "template sidecar is for another vertex count",
+                ));
+            }
+        }
         let mut lib = ShapeLibrary {
             meta: data.meta,
             base,
@@ -534,6 +582,17 @@ impl ShapeLibrary {
     /// The average adult (default [`ShapeParams`]) in rest pose, with its analysis.
     pub fn template(&self) -> &Template {
         &self.template
+    }
+
+    /// A library body with its own analysis (a candidate template for the fit; the
+    /// [`super::prepare`] step takes tens of milliseconds).
+    ///
+    /// # Errors
+    /// When [`super::prepare`] cannot analyse the body (not seen within the sampled range).
+    pub fn template_for(&self, p: &ShapeParams) -> Result<Template, BodyError> {
+        let mesh = self.body(p);
+        let info = super::prepare(&mesh)?;
+        Ok(Template { mesh, info })
     }
 
     /// Metadata of the library (source, macro variables).
@@ -630,6 +689,12 @@ impl ShapeLibrary {
                 continue;
             }
             let wf = w as f32;
+            if t.indices.is_empty() {
+                for (v, o) in out.iter_mut().zip(&t.offsets) {
+                    *v += DVec3::new((o[0] * wf) as f64, (o[1] * wf) as f64, (o[2] * wf) as f64);
+                }
+                continue;
+            }
             for (&i, o) in t.indices.iter().zip(&t.offsets) {
                 // Indices were checked against the vertex count at decode.
                 if let Some(v) = out.get_mut(i as usize) {
@@ -640,7 +705,11 @@ impl ShapeLibrary {
     }
 
     /// A deterministic, plausible adult from a seed: half women, half men (gender near
-    /// its end), ages 25..75, muscle/weight/height/proportions spread around the average.
+    /// its end), ages 25..75, muscle/weight/proportions spread around the average, the
+    /// height slider spread so that statures stay in a human range (about 1.47 to 1.92 m).
+    ///
+    /// Note: MakeHuman's height slider is extreme at its ends (about 1.22 m at 0 and 2.3 to
+    /// 2.45 m at 1 for an average build), so its full 0..1 range is not an adult range.
     pub fn sample_adult(seed: u64) -> ShapeParams {
         let mut rng = SplitMix64(seed ^ 0x5eed_b0d1_u64);
         let male = rng.uniform() < 0.5;
@@ -651,7 +720,16 @@ impl ShapeLibrary {
                 + (SAMPLE_AGE_YEARS.1 - SAMPLE_AGE_YEARS.0) * rng.uniform(),
             muscle: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
             weight: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
-            height: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
+            height: {
+                // MakeHuman's height slider is steep and asymmetric (about +1.4 m per unit
+                // above 0.5, +0.7 m below): spread it so statures stay human.
+                let z = rng.normal_in(0.0, 1.0, (-SAMPLE_HEIGHT_Z_MAX, SAMPLE_HEIGHT_Z_MAX));
+                0.5 + z * if z > 0.0 {
+                    SAMPLE_HEIGHT_SD.1
+                } else {
+                    SAMPLE_HEIGHT_SD.0
+                }
+            },
             proportions: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
         }
     }
@@ -663,6 +741,10 @@ const SAMPLE_GENDER_SPREAD: f64 = 0.2;
 const SAMPLE_AGE_YEARS: (f64, f64) = (25.0, 75.0);
 /// Standard deviation of the sampled sliders around 0.5.
 const SAMPLE_SD: f64 = 0.18;
+/// Deviation of the sampled height slider below and above 0.5 (about 6 cm of stature
+/// either way) and the truncation of its standard score.
+const SAMPLE_HEIGHT_SD: (f64, f64) = (0.08, 0.045);
+const SAMPLE_HEIGHT_Z_MAX: f64 = 2.2;
 /// Sampled sliders are truncated to this range (the extremes of MakeHuman's sliders are
 /// caricatures, not shoppers).
 const SAMPLE_SLIDER_RANGE: (f64, f64) = (0.1, 0.9);

@@ -24,6 +24,8 @@ pub mod decimate;
 pub mod import;
 pub mod library;
 pub mod prepare;
+#[cfg(test)]
+mod tests;
 
 use crate::mesh::io::MeshIoError;
 use crate::mesh::TriMesh;

@@ -106,6 +106,14 @@ pub struct Joints {
 }
 
 impl Joints {
+    /// A joint by its field name (`"knee_left"`, `"head_top"`, ...).
+    pub fn get(&self, name: &str) -> Option<DVec3> {
+        self.named()
+            .into_iter()
+            .find(|(n, _)| *n == name)
+            .map(|(_, p)| p)
+    }
+
     /// All joints with their names, in a fixed order.
     pub fn named(&self) -> Vec<(&'static str, DVec3)> {
         vec![
@@ -243,14 +251,62 @@ struct LoopStat {
     area: f64,
 }
 
-/// Summaries of the closed loops of the section at `y` (tiny loops dropped).
+/// Joins open section chains that share an end point (a cut through a hole comes back
+/// from [`slice`] as pieces of one curve) into whole open curves.
+fn join_open_chains(mut chains: Vec<Vec<DVec2>>) -> Vec<Vec<DVec2>> {
+    const SAME_POINT_M: f64 = 1e-9;
+    let mut out: Vec<Vec<DVec2>> = Vec::new();
+    while let Some(mut c) = chains.pop() {
+        loop {
+            let (first, last) = (c[0], c[c.len() - 1]);
+            let hit = chains.iter().position(|d| {
+                let (a, b) = (d[0], d[d.len() - 1]);
+                [(last, a), (last, b), (first, a), (first, b)]
+                    .iter()
+                    .any(|(p, q)| (*p - *q).length() < SAME_POINT_M)
+            });
+            let Some(k) = hit else { break };
+            let mut d = chains.swap_remove(k);
+            if (last - d[0]).length() < SAME_POINT_M {
+                c.extend(d.drain(1..));
+            } else if (last - d[d.len() - 1]).length() < SAME_POINT_M {
+                d.reverse();
+                c.extend(d.drain(1..));
+            } else if (first - d[d.len() - 1]).length() < SAME_POINT_M {
+                d.extend(c.drain(1..));
+                c = d;
+            } else {
+                d.reverse();
+                d.extend(c.drain(1..));
+                c = d;
+            }
+        }
+        out.push(c);
+    }
+    out
+}
+
+/// Summaries of the loops of the section at `y` (tiny loops dropped; open chains, as a
+/// scan's small holes leave them, joined and closed across the gap).
 fn loops_at(mesh: &TriMesh, y: f64) -> Vec<LoopStat> {
     let mut out = Vec::new();
-    for l in slice(mesh, &Plane::horizontal(y)) {
-        if !l.closed || l.points.len() < 3 {
+    let (closed, open): (Vec<_>, Vec<_>) = slice(mesh, &Plane::horizontal(y))
+        .into_iter()
+        .partition(|l| l.closed);
+    let open: Vec<Vec<DVec2>> = open
+        .into_iter()
+        .map(|l| l.points)
+        .filter(|p| !p.is_empty())
+        .collect();
+    let polys = closed
+        .into_iter()
+        .map(|l| l.points)
+        .chain(join_open_chains(open));
+    for p in polys {
+        if p.len() < 3 {
             continue;
         }
-        let p = &l.points;
+        let p = &p;
         let (mut a2, mut cx, mut cz) = (0.0, 0.0, 0.0);
         let (mut xmin, mut xmax, mut zmin, mut zmax) = (
             f64::INFINITY,
@@ -704,13 +760,17 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
         if dir == DVec3::ZERO {
             return Err(BodyError::Prepare("degenerate forearm".into()));
         }
+        // Seed: the vertex nearest the arm axis' last sample (among the finger tips; the
+        // farthest vertex along the forearm direction could be a toe).
+        let end = arm_axes[k].last().copied().unwrap_or(wrist);
         let tip = (0..mesh.vertex_count())
-            .max_by(|&a, &b| {
-                (mesh.positions[a] - wrist)
-                    .dot(dir)
-                    .total_cmp(&(mesh.positions[b] - wrist).dot(dir))
+            .filter(|&v| (mesh.positions[v] - wrist).dot(dir) > 0.0)
+            .min_by(|&a, &b| {
+                (mesh.positions[a] - end)
+                    .length_squared()
+                    .total_cmp(&(mesh.positions[b] - end).length_squared())
             })
-            .unwrap_or(0);
+            .ok_or_else(|| BodyError::Prepare("no hand beyond the wrist".into()))?;
         hands[k] = component(&adj, mesh, tip, |p| (p - wrist).dot(dir) > 0.0);
     }
     // Feet: below the ankle joints, on each side.

@@ -239,10 +239,8 @@ mod tests {
     #[test]
     fn closest_point_is_on_the_triangle_and_nearest() {
         let (a, b, c) = (DVec3::ZERO, DVec3::X, DVec3::Y);
-        assert_eq!(
-            closest_point_on_triangle(DVec3::new(0.2, 0.2, 1.0), a, b, c),
-            DVec3::new(0.2, 0.2, 0.0)
-        );
+        let q = closest_point_on_triangle(DVec3::new(0.2, 0.2, 1.0), a, b, c);
+        assert!((q - DVec3::new(0.2, 0.2, 0.0)).length() < 1e-12, "{q}");
         assert_eq!(
             closest_point_on_triangle(DVec3::new(-1.0, -1.0, 0.0), a, b, c),
             a

@@ -17,6 +17,8 @@ use std::path::Path;
 
 /// Height of the overlay thumbnails, pixels.
 pub const THUMB_HEIGHT: u32 = 300;
+/// Margin around the silhouettes in a thumbnail, fraction of their height.
+const THUMB_MARGIN: f64 = 0.06;
 const FITTED_TINT: [f32; 3] = [255.0, 60.0, 200.0];
 const TRUE_OUTLINE: [u8; 3] = [40, 255, 60];
 
@@ -85,8 +87,8 @@ pub fn overlay_thumbnails(
         let w = img.width();
         for (i, (px, covered)) in img.pixels_mut().zip(r.coverage()).enumerate() {
             if covered {
-                for c in 0..3 {
-                    px.0[c] = (0.55 * px.0[c] as f32 + 0.45 * FITTED_TINT[c]) as u8;
+                for (v, tint) in px.0.iter_mut().zip(FITTED_TINT) {
+                    *v = (0.55 * *v as f32 + 0.45 * tint) as u8;
                 }
             }
             if let Some(m) = &true_mask {
@@ -103,11 +105,30 @@ pub fn overlay_thumbnails(
                 }
             }
         }
-        let tw = (img.width() as f64 * THUMB_HEIGHT as f64 / img.height() as f64)
+        // Crop to both silhouettes with a margin, so the body fills the thumbnail.
+        let (w, h) = (img.width(), img.height());
+        let mut bb: Option<(u32, u32, u32, u32)> = None;
+        for (i, covered) in r.coverage().enumerate() {
+            let (x, y) = (i as u32 % w, i as u32 / w);
+            let in_truth = true_mask
+                .as_ref()
+                .is_some_and(|m| m.get_pixel_checked(x, y).is_some_and(|p| p.0[0] > 127));
+            if covered || in_truth {
+                bb = Some(bb.map_or((x, y, x, y), |b| {
+                    (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y))
+                }));
+            }
+        }
+        let (x0, y0, x1, y1) = bb.unwrap_or((0, 0, w - 1, h - 1));
+        let m = ((y1 - y0) as f64 * THUMB_MARGIN) as u32;
+        let (x0, y0) = (x0.saturating_sub(m), y0.saturating_sub(m));
+        let (x1, y1) = ((x1 + m).min(w - 1), (y1 + m).min(h - 1));
+        let crop = image::imageops::crop_imm(&img, x0, y0, x1 - x0 + 1, y1 - y0 + 1).to_image();
+        let tw = (crop.width() as f64 * THUMB_HEIGHT as f64 / crop.height() as f64)
             .round()
             .max(1.0) as u32;
         let small = image::imageops::resize(
-            &img,
+            &crop,
             tw,
             THUMB_HEIGHT,
             image::imageops::FilterType::Triangle,

@@ -434,7 +434,7 @@ impl EvalTable {
         }
         let t = self.timing_summary();
         if !t.is_empty() {
-            s.push_str("\nstage                  median ms   p95 ms (worst subject)\n");
+            s.push_str("\nstage                  median ms   worst p95 ms\n");
             for (k, v) in t {
                 s.push_str(&format!("{k:<22} {:>9.2} {:>8.2}\n", v.median, v.p95));
             }

@@ -14,12 +14,16 @@
 //!   splitting the cut into connected loops (torso, arms, legs are separate loops).
 //!
 //! # Landmark levels (found in this order)
-//! - **Body axis** x: the middle of the x-extent of the loop that crosses the bounding
-//!   box centre at [`TORSO_PROBE_OF_STATURE`] of the stature (always the abdomen on an
-//!   adult: crotch height is 0.44-0.50 of stature).
-//! - **Crotch** (`levels.crotch_m`): the highest level at which no section loop spans the
-//!   body axis, i.e. the lower body is two separate leg loops. Searched downward from the
-//!   probe in [`COARSE_STEP_M`] steps, then bisected to [`LEVEL_TOLERANCE_M`].
+//! - **Body axis** x: the middle of the x-extent of the central loop (below) through
+//!   the bounding box centre at [`TORSO_PROBE_OF_STATURE`] of the stature (always the
+//!   abdomen on an adult: crotch height is 0.44-0.50 of stature).
+//! - Loops are **central** (torso) when the body axis crosses the middle 60 % of their
+//!   x-extent ([`slicer::CENTRAL_MARGIN_OF_WIDTH`]), else **left** (+X) or **right** by
+//!   the middle of their extent: thighs that press through each other on a
+//!   self-intersecting mesh stay two legs.
+//! - **Crotch** (`levels.crotch_m`): the highest level without a central loop, i.e. the
+//!   lower body is two separate leg loops. Searched downward from the probe in
+//!   [`COARSE_STEP_M`] steps, then bisected to [`LEVEL_TOLERANCE_M`].
 //! - **Armpit** (`levels.armpit_m`): the top of the highest run of levels (between the
 //!   crotch and [`ARMPIT_SEARCH_TOP_OF_STATURE`] of the stature, below the ears) at which
 //!   both arms are loops separate from the torso, and above which the torso loop reaches
@@ -43,15 +47,24 @@
 //!   by [`ARM_CUT_MARGIN_M`] (the tape runs under the arms, not around them).
 //! - **Waist girth** (5.3.10: natural waist, between the lowest rib and the top of the
 //!   hip bone): the least torso girth in [crotch + [`WAIST_BAND_OF_SPAN`].0 span,
-//!   crotch + [`WAIST_BAND_OF_SPAN`].1 span]. The iliac crest lies at about half the
-//!   crotch-armpit span and the lowest (10th) rib at about two thirds of it in adult
-//!   surveys; the band is widened on both sides so that it contains the natural waist
-//!   of short- and long-waisted people, and the minimum does the locating.
+//!   crotch + [`WAIST_BAND_OF_SPAN`].1 span]. Roughly (from typical adult proportions,
+//!   not a cited table), the iliac crest sits near half of the crotch-armpit span above
+//!   the crotch and the lowest rib near two thirds; the band is widened on both sides so
+//!   that it holds the natural waist of short- and long-waisted people, and the minimum
+//!   does the locating. When the least girth lies on the band's edge there is no
+//!   natural waist to find (a belly rounder than the ribs): the tape then goes at
+//!   [`WAIST_NO_NARROWING_OF_SPAN`], midway between iliac crest and lowest rib. On 24
+//!   MakeHuman adults (young/old, female/male, every muscle/weight extreme) the least
+//!   girth fell between 0.47 and 0.80 of the span; only the most obese reached the
+//!   band's top, under the ribs.
 //! - **Hip girth** (5.3.13: horizontal girth at the level of greatest buttock
-//!   prominence): the torso girth at the level, between the crotch and the waist, where
-//!   the torso reaches furthest back (least z). Not the maximum girth of that band: just
-//!   above the crotch the torso loop holds the tops of both thighs, whose hull is often
-//!   the widest section of all and is not what a tape round the buttocks reads.
+//!   prominence): the torso girth at the middle of the buttocks' bulge between the
+//!   crotch and the waist: the run of levels around the one where the torso reaches
+//!   furthest back (least z) whose back lies within [`HIP_PLATEAU_M`] of that point (on
+//!   a round seat the single deepest level wanders along a nearly flat back line). Not
+//!   the maximum girth of that band: just above the crotch the torso loop holds the
+//!   tops of both thighs, whose hull is often the widest section of all and is not
+//!   what a tape round the buttocks reads.
 //! - **Thigh girth, left and right** (5.3.20: horizontal girth of the thigh just below
 //!   the gluteal fold): the hull girth of each leg loop [`THIGH_DROP_OF_STATURE`] of
 //!   the stature below the crotch (the gluteal fold lies a few centimetres below the
@@ -64,9 +77,10 @@
 //! [`REFINE_TOLERANCE_M`].
 //!
 //! # Speed
-//! A [`Measurer`] keeps a height index of the triangles and all section buffers between
-//! calls: each section visits only the triangles near its level, and after the first
-//! call nothing but the result's profile is allocated.
+//! A [`Measurer`] keeps the triangles' edge table (while the topology stays), a height
+//! index of the triangles and all section buffers between calls: each section visits
+//! only the triangles near its level, and [`Measurer::measure_into`] allocates nothing
+//! once warm. The free [`measure`] and [`girth_at`] use one such `Measurer` per thread.
 
 pub mod cli;
 pub mod slicer;
@@ -74,7 +88,7 @@ pub mod slicer;
 use crate::mesh::TriMesh;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
-use slicer::{HullStats, LevelIndex, SectionScratch};
+use slicer::{HullStats, LevelIndex, Placement, SectionScratch};
 
 pub use cli::{run, MeasureArgs};
 
@@ -89,8 +103,9 @@ pub const ARMPIT_SEARCH_TOP_OF_STATURE: f64 = 0.85;
 pub const COARSE_STEP_M: f64 = 0.02;
 /// Bisection tolerance of the crotch and armpit levels, metres.
 pub const LEVEL_TOLERANCE_M: f64 = 1e-4;
-/// How far below the armpit level the torso loop is read for the armpit x positions.
-pub const ARMPIT_CLEARANCE_M: f64 = 0.002;
+/// How far below a found level (crotch, armpit) its section is read: the legs just
+/// under the crotch, the torso's x-extent (armpit x positions) just under the armpit.
+pub const CLEARANCE_BELOW_LEVEL_M: f64 = 0.002;
 /// Chest band depth below the armpit, fraction of the crotch-armpit span.
 pub const CHEST_BAND_OF_SPAN: f64 = 0.25;
 /// Top of the chest band below the armpit, fraction of the span.
@@ -99,6 +114,13 @@ pub const CHEST_TOP_OFFSET_OF_SPAN: f64 = 0.01;
 pub const ARM_CUT_MARGIN_M: f64 = 0.005;
 /// Waist band, fractions of the span above the crotch.
 pub const WAIST_BAND_OF_SPAN: (f64, f64) = (0.45, 0.8);
+/// Waist level, fraction of the span above the crotch, when the torso has no narrowing
+/// inside the waist band: midway between the iliac crest (~0.5) and the lowest rib
+/// (~0.67), the fallback tape position of the WHO waist protocol.
+pub const WAIST_NO_NARROWING_OF_SPAN: f64 = 0.58;
+/// Depth tolerance of the buttocks' bulge, metres: levels whose back is within this of
+/// the most posterior point belong to the bulge whose middle is the hip level.
+pub const HIP_PLATEAU_M: f64 = 0.003;
 /// Thigh level below the crotch, fraction of the stature.
 pub const THIGH_DROP_OF_STATURE: f64 = 0.03;
 /// Torso profile spacing, metres (the exact step divides the span evenly).
@@ -167,7 +189,7 @@ pub enum MeasureError {
     EmptyMesh,
     #[error("invalid mesh: {0}")]
     InvalidMesh(String),
-    #[error("no torso: no section loop spans the body axis at y = {y_m:.3} m ({TORSO_PROBE_OF_STATURE} of the stature); not a standing body?")]
+    #[error("no torso: no central section loop about the body axis at y = {y_m:.3} m ({TORSO_PROBE_OF_STATURE} of the stature); not a standing body?")]
     NoTorso { y_m: f64 },
     #[error("no crotch: the lower body is not two separate legs anywhere between y = {bottom_m:.3} m and {top_m:.3} m; legs together or not a standing body?")]
     NoCrotch { bottom_m: f64, top_m: f64 },
@@ -200,24 +222,39 @@ impl std::fmt::Display for BodySide {
 pub enum LoopSelector {
     /// The hull of every loop of the section together.
     Whole,
-    /// The loop spanning the vertical plane x = `axis_x` (the largest by bounding box if
-    /// several do, e.g. a cavity inside the body).
+    /// The central loop about x = `axis_x` (see [`slicer::Placement`]; the largest by
+    /// bounding box if several are, e.g. a cavity inside the body).
     Torso { axis_x: f64 },
     /// As [`LoopSelector::Torso`], keeping only the part of the loop with x in
     /// [`x_min`, `x_max`]: cuts off an arm that touches the torso.
     TorsoClipped { axis_x: f64, x_min: f64, x_max: f64 },
-    /// The largest loop (by bounding box) lying entirely on `side` of x = `axis_x` (a
-    /// leg, below the crotch; left = +X).
+    /// The largest loop (by bounding box) placed on `side` of x = `axis_x` (a leg,
+    /// below the crotch; left = +X).
     Side { side: BodySide, axis_x: f64 },
+}
+
+thread_local! {
+    /// The [`Measurer`] behind the free functions: one per thread, so that calling
+    /// [`measure`] every frame (or [`girth_at`] at many levels of one mesh) reuses the
+    /// edge table, the height index and the buffers, as an owned `Measurer` would.
+    static THREAD_MEASURER: std::cell::RefCell<Measurer> = std::cell::RefCell::new(Measurer::new());
+}
+
+fn with_thread_measurer<R>(f: impl FnOnce(&mut Measurer) -> R) -> R {
+    THREAD_MEASURER.with(|m| match m.try_borrow_mut() {
+        Ok(mut m) => f(&mut m),
+        // Only reachable if `f` itself calls back in here: use a fresh one.
+        Err(_) => f(&mut Measurer::new()),
+    })
 }
 
 /// Tape girth (metres) of the section of `mesh` at height `y` around the loop(s) chosen
 /// by `selector`; `None` when no such loop exists or the mesh is invalid.
 ///
-/// Convenience for one-off use: it builds a [`Measurer`] (O(#F)); reuse a `Measurer`
-/// for many levels of the same mesh.
+/// Uses this thread's cached [`Measurer`]: the first call on a mesh builds its height
+/// index (O(#F)), further calls on the same mesh only cut one section.
 pub fn girth_at(mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
-    Measurer::default().girth_at(mesh, y, selector)
+    with_thread_measurer(|m| m.girth_at(mesh, y, selector))
 }
 
 /// Measures a standing body (see the module docs).
@@ -225,8 +262,11 @@ pub fn girth_at(mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
 /// # Errors
 /// [`MeasureError`] when the mesh is empty or invalid, or is not a standing body in an
 /// A-pose (no torso, no gap between the legs, arms never apart from the torso).
+///
+/// Uses this thread's cached [`Measurer`] (see [`girth_at`]); own a `Measurer` and call
+/// [`Measurer::measure_into`] to also reuse the result's memory.
 pub fn measure(mesh: &TriMesh) -> Result<Measurements, MeasureError> {
-    Measurer::default().measure(mesh)
+    with_thread_measurer(|m| m.measure(mesh))
 }
 
 /// A girth at one level, with the loop's extent (internal to the level searches).
@@ -326,22 +366,25 @@ impl Measurer {
     }
 
     /// Index of the torso loop of the last section: the largest (by bounding box, a
-    /// cheap stand-in for area) loop spanning x = `axis_x`.
+    /// cheap stand-in for area) central loop about x = `axis_x`.
     fn torso_loop(&self, axis_x: f64) -> Option<usize> {
         self.section
             .loops()
             .iter()
             .enumerate()
-            .filter(|(_, l)| l.straddles(axis_x))
+            .filter(|(_, l)| l.placement(axis_x) == Placement::Central)
             .max_by(|a, b| box_area(a.1).total_cmp(&box_area(b.1)))
             .map(|(i, _)| i)
     }
 
-    /// Whether the last section has a loop entirely left and one entirely right of
-    /// the axis (legs below the crotch, arms between the hands and the armpits).
+    /// Whether the last section has a loop placed left and one placed right of the
+    /// axis (legs below the crotch, arms between the hands and the armpits).
     fn loops_on_both_sides(&self, axis_x: f64) -> bool {
         let loops = self.section.loops();
-        loops.iter().any(|l| l.x_min > axis_x) && loops.iter().any(|l| l.x_max < axis_x)
+        loops.iter().any(|l| l.placement(axis_x) == Placement::Left)
+            && loops
+                .iter()
+                .any(|l| l.placement(axis_x) == Placement::Right)
     }
 
     /// With a torso loop and loops on both sides of it in the last section: the
@@ -351,12 +394,12 @@ impl Measurer {
         let loops = self.section.loops();
         let left = loops
             .iter()
-            .filter(|l| l.x_min > axis_x)
+            .filter(|l| l.placement(axis_x) == Placement::Left)
             .map(|l| l.x_min)
             .fold(f64::INFINITY, f64::min);
         let right = loops
             .iter()
-            .filter(|l| l.x_max < axis_x)
+            .filter(|l| l.placement(axis_x) == Placement::Right)
             .map(|l| l.x_max)
             .fold(f64::NEG_INFINITY, f64::max);
         (left.is_finite() && right.is_finite()).then_some((left, right))
@@ -381,8 +424,8 @@ impl Measurer {
             }
             LoopSelector::Side { side, axis_x } => {
                 let on_side = |l: &slicer::LoopInfo| match side {
-                    BodySide::Left => l.x_min > axis_x,
-                    BodySide::Right => l.x_max < axis_x,
+                    BodySide::Left => l.placement(axis_x) == Placement::Left,
+                    BodySide::Right => l.placement(axis_x) == Placement::Right,
                 };
                 let i = self
                     .section
@@ -490,6 +533,38 @@ impl Measurer {
     /// # Errors
     /// As [`measure`].
     pub fn measure(&mut self, mesh: &TriMesh) -> Result<Measurements, MeasureError> {
+        let mut out = Measurements {
+            stature_mm: 0.0,
+            chest_girth_mm: 0.0,
+            waist_girth_mm: 0.0,
+            hip_girth_mm: 0.0,
+            thigh_girth_left_mm: 0.0,
+            thigh_girth_right_mm: 0.0,
+            levels: MeasurementLevels {
+                crotch_m: 0.0,
+                armpit_m: 0.0,
+                chest_m: 0.0,
+                waist_m: 0.0,
+                hip_m: 0.0,
+                thigh_m: 0.0,
+            },
+            torso_profile: Vec::new(),
+        };
+        self.measure_into(mesh, &mut out)?;
+        Ok(out)
+    }
+
+    /// As [`Measurer::measure`], writing into `out` and reusing its profile's memory:
+    /// with a warm `Measurer` and `out`, a frame allocates nothing. On error `out` is
+    /// left unchanged.
+    ///
+    /// # Errors
+    /// As [`measure`].
+    pub fn measure_into(
+        &mut self,
+        mesh: &TriMesh,
+        out: &mut Measurements,
+    ) -> Result<(), MeasureError> {
         self.load(mesh)?;
         let (y_min, y_max) = (self.y_min, self.y_max);
         let stature = y_max - y_min;
@@ -521,16 +596,22 @@ impl Measurer {
             }
             y = below;
         };
-        let leg_y = crotch - ARMPIT_CLEARANCE_M;
+        let leg_y = crotch - CLEARANCE_BELOW_LEVEL_M;
         self.cut(mesh, leg_y);
         for (side, ok) in [
             (
                 BodySide::Left,
-                self.section.loops().iter().any(|l| l.x_min > axis_x),
+                self.section
+                    .loops()
+                    .iter()
+                    .any(|l| l.placement(axis_x) == Placement::Left),
             ),
             (
                 BodySide::Right,
-                self.section.loops().iter().any(|l| l.x_max < axis_x),
+                self.section
+                    .loops()
+                    .iter()
+                    .any(|l| l.placement(axis_x) == Placement::Right),
             ),
         ] {
             if !ok {
@@ -540,9 +621,10 @@ impl Measurer {
 
         // Armpit: scanning down from the search top, the first level where both arms
         // are loops apart from the torso, just below a level where the torso loop
-        // reaches over where those arms are (they have joined it). Shoulder tops that
-        // slice as separate caps beside the neck fail the second test: above them the
-        // neck is narrower, not wider.
+        // reaches over where one of those arms is (it has joined; if the arms join at
+        // different heights, this is the lower armpit). Shoulder tops that slice as
+        // separate caps beside the neck fail the second test: above them the neck is
+        // narrower, not wider.
         let arms_apart =
             move |m: &Self| m.torso_loop(axis_x).is_some() && m.loops_on_both_sides(axis_x);
         let top = y_min + ARMPIT_SEARCH_TOP_OF_STATURE * stature;
@@ -560,7 +642,7 @@ impl Measurer {
             match self.arm_inner_edges(axis_x) {
                 Some((left_inner, right_inner)) => {
                     if let Some((y_above, x_min, x_max)) = above {
-                        if x_max >= left_inner && x_min <= right_inner {
+                        if x_max >= left_inner || x_min <= right_inner {
                             break (y, y_above);
                         }
                     }
@@ -580,11 +662,11 @@ impl Measurer {
         let armpit_torso = self
             .hull_at(
                 mesh,
-                armpit - ARMPIT_CLEARANCE_M,
+                armpit - CLEARANCE_BELOW_LEVEL_M,
                 LoopSelector::Torso { axis_x },
             )
             .ok_or(MeasureError::NoTorsoAt {
-                y_m: armpit - ARMPIT_CLEARANCE_M,
+                y_m: armpit - CLEARANCE_BELOW_LEVEL_M,
                 what: "armpit",
             })?;
         let span = armpit - crotch;
@@ -639,7 +721,7 @@ impl Measurer {
             y_m: chest_band.0,
             what: "chest",
         })?;
-        let waist = self.refine(
+        let mut waist = self.refine(
             mesh,
             waist0,
             step,
@@ -647,6 +729,18 @@ impl Measurer {
             &torso_selector,
             Objective::MinGirth,
         );
+        // No narrowing inside the band (the least girth is on its edge, as under an
+        // obese belly): take the level midway between iliac crest and lowest rib.
+        if (waist.y - waist_band.0).min(waist_band.1 - waist.y) <= REFINE_TOLERANCE_M {
+            let y = crotch + WAIST_NO_NARROWING_OF_SPAN * span;
+            let hull = self
+                .hull_at(mesh, y, torso_selector(y))
+                .ok_or(MeasureError::NoTorsoAt {
+                    y_m: y,
+                    what: "waist",
+                })?;
+            waist = Sample { y, hull };
+        }
         let chest = self.refine(
             mesh,
             chest0,
@@ -660,15 +754,39 @@ impl Measurer {
             y_m: crotch,
             what: "hip",
         })?;
-        let hip = self.refine(mesh, hip0, step, hip_band, &torso_selector, Objective::MinZ);
-
-        let torso_profile = profile
+        let deepest = self.refine(mesh, hip0, step, hip_band, &torso_selector, Objective::MinZ);
+        // The buttocks' bulge: the profile levels next to the deepest one that reach
+        // within HIP_PLATEAU_M of it. Its middle is the prominence; on a round or flat
+        // seat the deepest point alone wanders along the bulge.
+        let within = |s: &Sample| {
+            s.y >= hip_band.0
+                && s.y <= hip_band.1
+                && s.hull.z_min <= deepest.hull.z_min + HIP_PLATEAU_M
+        };
+        let i0 = profile
             .iter()
-            .map(|s| GirthSample {
-                height_m: s.y,
-                girth_mm: s.hull.perimeter_m * MM_PER_M,
-            })
-            .collect();
+            .position(|s| s.y == hip0.y)
+            .unwrap_or_default();
+        let (mut lo, mut hi) = (i0, i0);
+        while lo > 0 && within(&profile[lo - 1]) {
+            lo -= 1;
+        }
+        while hi + 1 < profile.len() && within(&profile[hi + 1]) {
+            hi += 1;
+        }
+        let hip = if hi > lo {
+            let y = 0.5 * (profile[lo].y + profile[hi].y);
+            let hull = self
+                .hull_at(mesh, y, torso_selector(y))
+                .ok_or(MeasureError::NoTorsoAt {
+                    y_m: y,
+                    what: "hip",
+                })?;
+            Sample { y, hull }
+        } else {
+            deepest
+        };
+
         self.profile = profile;
 
         // Thighs just below the gluteal fold.
@@ -682,23 +800,27 @@ impl Measurer {
                 .perimeter_m;
         }
 
-        Ok(Measurements {
-            stature_mm: stature * MM_PER_M,
-            chest_girth_mm: chest.hull.perimeter_m * MM_PER_M,
-            waist_girth_mm: waist.hull.perimeter_m * MM_PER_M,
-            hip_girth_mm: hip.hull.perimeter_m * MM_PER_M,
-            thigh_girth_left_mm: thigh[0] * MM_PER_M,
-            thigh_girth_right_mm: thigh[1] * MM_PER_M,
-            levels: MeasurementLevels {
-                crotch_m: crotch,
-                armpit_m: armpit,
-                chest_m: chest.y,
-                waist_m: waist.y,
-                hip_m: hip.y,
-                thigh_m: thigh_y,
-            },
-            torso_profile,
-        })
+        out.stature_mm = stature * MM_PER_M;
+        out.chest_girth_mm = chest.hull.perimeter_m * MM_PER_M;
+        out.waist_girth_mm = waist.hull.perimeter_m * MM_PER_M;
+        out.hip_girth_mm = hip.hull.perimeter_m * MM_PER_M;
+        out.thigh_girth_left_mm = thigh[0] * MM_PER_M;
+        out.thigh_girth_right_mm = thigh[1] * MM_PER_M;
+        out.levels = MeasurementLevels {
+            crotch_m: crotch,
+            armpit_m: armpit,
+            chest_m: chest.y,
+            waist_m: waist.y,
+            hip_m: hip.y,
+            thigh_m: thigh_y,
+        };
+        out.torso_profile.clear();
+        out.torso_profile
+            .extend(self.profile.iter().map(|s| GirthSample {
+                height_m: s.y,
+                girth_mm: s.hull.perimeter_m * MM_PER_M,
+            }));
+        Ok(())
     }
 }
 

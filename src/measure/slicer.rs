@@ -217,11 +217,33 @@ pub struct LoopInfo {
     seg_end: u32,
 }
 
+/// A loop is central (the torso) when the body axis crosses the middle of its x-extent,
+/// leaving at least this fraction of the extent on either side. Thighs that press into
+/// each other (a self-intersecting fit: each leg loop reaches past the axis) stay legs
+/// up to an overlap of 40 % of a thigh's width; a torso with one arm joined to it (the
+/// axis at a quarter to a third of the extent) stays the torso.
+pub const CENTRAL_MARGIN_OF_WIDTH: f64 = 0.2;
+
+/// Where a section loop lies relative to the body axis x = axis_x (left is +X).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    Central,
+    Left,
+    Right,
+}
+
 impl LoopInfo {
-    /// Whether the loop spans the vertical plane x = `axis_x` (the torso does; legs
-    /// and arms lie to one side of it).
-    pub fn straddles(&self, axis_x: f64) -> bool {
-        self.x_min <= axis_x && self.x_max >= axis_x
+    /// Where the loop lies relative to x = `axis_x`: central (see
+    /// [`CENTRAL_MARGIN_OF_WIDTH`]), else the side of its x-extent's middle.
+    pub fn placement(&self, axis_x: f64) -> Placement {
+        let margin = CENTRAL_MARGIN_OF_WIDTH * (self.x_max - self.x_min);
+        if self.x_min + margin <= axis_x && axis_x <= self.x_max - margin {
+            Placement::Central
+        } else if 0.5 * (self.x_min + self.x_max) > axis_x {
+            Placement::Left
+        } else {
+            Placement::Right
+        }
     }
 }
 
@@ -245,6 +267,8 @@ pub struct SectionScratch {
     segs: Vec<[DVec2; 2]>,
     /// Triangle of each segment and the two triangle edges it crosses.
     seg_tri: Vec<(u32, [u8; 2])>,
+    /// Which ends of each segment it lists for hulls (each crossing point once).
+    owned: Vec<[bool; 2]>,
     /// Per mesh triangle: the segment it gave in the section numbered `stamp[t]`.
     seg_of_tri: Vec<u32>,
     stamp: Vec<u32>,
@@ -340,9 +364,11 @@ impl SectionScratch {
         let n = self.segs.len();
         self.parent.clear();
         self.parent.extend(0..n as u32);
+        self.owned.clear();
         for s in 0..n {
             let (t, edges) = self.seg_tri[s];
-            for e in edges {
+            let mut owned = [true; 2];
+            for (k, e) in edges.into_iter().enumerate() {
                 let nb = index
                     .neighbours
                     .get(t as usize)
@@ -350,6 +376,9 @@ impl SectionScratch {
                 if nb == NO_NEIGHBOUR || self.stamp[nb as usize] != self.epoch {
                     continue;
                 }
+                // The crossing point is shared with the neighbour: one of the two
+                // segments lists it for the hull.
+                owned[k] = nb > t;
                 let other = self.seg_of_tri[nb as usize];
                 let (ra, rb) = (
                     find(&mut self.parent, s as u32),
@@ -359,6 +388,7 @@ impl SectionScratch {
                     self.parent[ra as usize] = rb;
                 }
             }
+            self.owned.push(owned);
         }
         // Label loops 0..L and group segments by loop (counting sort).
         self.label.clear();
@@ -425,8 +455,13 @@ impl SectionScratch {
             let [a, b] = self.segs[s as usize];
             match clip_x {
                 None => {
-                    self.points.push(a);
-                    self.points.push(b);
+                    let owned = self.owned[s as usize];
+                    if owned[0] {
+                        self.points.push(a);
+                    }
+                    if owned[1] {
+                        self.points.push(b);
+                    }
                 }
                 Some((x0, x1)) => {
                     if let Some((p, q)) = clip_segment_x(a, b, x0, x1) {
@@ -582,7 +617,12 @@ mod tests {
             .iter()
             .position(|l| l.x_min > 0.25)
             .expect("right-hand prism");
-        assert!(s.loops()[left].straddles(0.5) && !s.loops()[left].straddles(0.0));
+        assert_eq!(s.loops()[left].placement(0.5), Placement::Central);
+        assert_eq!(s.loops()[left].placement(0.0), Placement::Left);
+        assert_eq!(s.loops()[left].placement(0.9), Placement::Right);
+        // The axis 3 cm inside a 0.2 m wide loop: not central.
+        assert_eq!(s.loops()[left].placement(0.43), Placement::Left);
+        assert_eq!(s.loops()[left].placement(0.45), Placement::Central);
         // Clipping a disc of radius r to |x - c| <= r/2 leaves a hull of perimeter
         // 2 (r sqrt(3)) + 2 (r pi / 3) on the true circle; the 32-gon is close to it.
         let clipped = s

@@ -10,7 +10,8 @@
 //! - An IDR frame every [`IDR_PERIOD_FRAMES`] frames.
 //!
 //! # Reading
-//! MP4 samples are converted to Annex-B (start codes) and, on sync samples, the avcC
+//! Decoding restarts at the last IDR frame at or before a requested frame when going
+//! back or jumping ahead. MP4 samples are converted to Annex-B (start codes) and, on sync samples, the avcC
 //! SPS/PPS are prepended before they reach the decoder (stack.md "Video files"). A file
 //! without a readable index is scanned: the `mdat` payload is walked NAL by NAL and
 //! every complete picture is decoded; the rest is reported.
@@ -99,7 +100,7 @@ pub struct Mp4VideoWriter {
 impl Mp4VideoWriter {
     /// Creates `path` for `width` x `height` frames (both even) at `fps`.
     pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, VideoError> {
-        if width % 2 != 0 || height % 2 != 0 || width == 0 || height == 0 {
+        if !width.is_multiple_of(2) || !height.is_multiple_of(2) || width == 0 || height == 0 {
             return Err(verr(
                 path,
                 format!("H.264 needs even frame sizes, got {width}x{height}"),
@@ -247,6 +248,8 @@ impl Mp4VideoWriter {
 struct RawPicture {
     /// (offset, length) of each NAL unit belonging to this picture, file order.
     nals: Vec<(u64, u32)>,
+    /// An IDR picture (decoding may start here).
+    idr: bool,
 }
 
 enum Index {
@@ -275,6 +278,8 @@ pub struct Mp4VideoReader {
     height: u32,
     /// Index of the next frame the decoder will produce.
     next: usize,
+    /// Frames that start a closed group (IDR), ascending; decoding may restart there.
+    sync: Vec<usize>,
     last: Option<(usize, RgbImage)>,
     annexb: Vec<u8>,
     warnings: Vec<String>,
@@ -313,6 +318,27 @@ impl Mp4VideoReader {
                 }
             }
         };
+        let sync: Vec<usize> = match &index {
+            Index::Track { reader, track, .. } => {
+                let t = reader.tracks().get(track);
+                match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
+                    // No sync table: every sample is a sync sample (ISO 14496-12).
+                    None => (0..t.map_or(0, |t| t.sample_count() as usize)).collect(),
+                    Some(stss) => stss
+                        .entries
+                        .iter()
+                        .filter(|&&e| e >= 1)
+                        .map(|&e| e as usize - 1)
+                        .collect(),
+                }
+            }
+            Index::Scanned { pictures, .. } => pictures
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.idr)
+                .map(|(i, _)| i)
+                .collect(),
+        };
         let (len, width, height) = match &index {
             Index::Track { reader, track, .. } => {
                 let t = reader
@@ -336,6 +362,7 @@ impl Mp4VideoReader {
             width,
             height,
             next: 0,
+            sync,
             last: None,
             annexb: Vec::new(),
             warnings,
@@ -399,11 +426,19 @@ impl Mp4VideoReader {
                 return Ok(img.clone());
             }
         }
-        if k < self.next {
-            // Going back: restart the decoder at the first frame.
+        // Restart at the last IDR frame at or before k when going back or when that
+        // IDR lies ahead of the decoder (skips decoding frames nobody asked for).
+        let restart = self
+            .sync
+            .iter()
+            .rev()
+            .find(|&&i| i <= k)
+            .copied()
+            .unwrap_or(0);
+        if k < self.next || restart > self.next {
             self.decoder =
                 Decoder::new().map_err(|e| verr(&self.path, format!("H.264 decoder: {e}")))?;
-            self.next = 0;
+            self.next = restart;
         }
         let mut out = None;
         while self.next <= k {
@@ -550,7 +585,10 @@ fn scan_nals(
         source,
     };
     let mut pictures = Vec::new();
-    let mut current = RawPicture { nals: Vec::new() };
+    let mut current = RawPicture {
+        nals: Vec::new(),
+        idr: false,
+    };
     let mut pos = start;
     let mut len4 = [0u8; 4];
     let mut first = [0u8; 1];
@@ -565,9 +603,13 @@ fn scan_nals(
         current.nals.push((pos + 4, n));
         let kind = first[0] & 0x1f;
         if kind == NAL_IDR || kind == NAL_SLICE {
+            current.idr = kind == NAL_IDR;
             pictures.push(std::mem::replace(
                 &mut current,
-                RawPicture { nals: Vec::new() },
+                RawPicture {
+                    nals: Vec::new(),
+                    idr: false,
+                },
             ));
         }
         pos += 4 + n as u64;

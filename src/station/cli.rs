@@ -333,3 +333,54 @@ impl FrameSource for VecSource {
         "stills".into()
     }
 }
+
+/// `fitstation eval`: replays each recording through the station (or scores given
+/// results) and compares with the ground truth.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EvalCmd {
+    #[command(flatten)]
+    pub eval: crate::eval::EvalArgs,
+    /// Score "no fitting at all" instead: the average library body scaled to the true
+    /// stature (the baseline the fit must beat).
+    #[arg(long, conflicts_with = "result")]
+    pub baseline: bool,
+    /// Correspondence of the fit: the paper's slice extremes or perspective rims.
+    #[arg(long, value_enum, default_value = "perspective-rim")]
+    pub correspondence: Variant,
+}
+
+/// Runs `fitstation eval`.
+pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
+    if cmd.eval.result.is_some() {
+        return crate::eval::run(cmd.eval.clone());
+    }
+    let library = default_library()?;
+    if cmd.baseline {
+        let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
+            let truth = crate::synth::load_truth(&crate::synth::truth_dir(rec))?;
+            let stature = truth.measurements_mm.get("stature").copied().context("truth has no stature")? / 1000.0;
+            let mut avatar = library.template().mesh.clone();
+            let h = avatar.bounds().map(|b| b.size().y).unwrap_or(1.0).max(1e-6);
+            avatar.map_positions(|p| p * (stature / h));
+            let m = crate::measure::measure(&avatar)?;
+            let report = serde_json::json!({ "measurements_mm": m.to_report_map() });
+            Ok(crate::eval::FitResult { avatar, report_json: report, masks_dir: None })
+        };
+        return crate::eval::run_with(&cmd.eval, &mut source);
+    }
+    let mut opts = StationOptions::default();
+    opts.fit.variant = cmd.correspondence;
+    let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
+        let mut src = RecordingSource::open(rec)?;
+        let calib = src.recording().calibration().clone();
+        let mut o = opts.clone();
+        if o.stature_m.is_none() {
+            o.stature_m = src.recording().metadata().stature_m;
+        }
+        let mut proc_ = StationProcessor::new(calib, library.clone(), o)?;
+        let summary = run_offline(&mut src, &mut proc_, None, false);
+        let avatar = summary.avatar.with_context(|| format!("no frame could be fitted: {}", summary.report["messages"]))?;
+        Ok(crate::eval::FitResult { avatar, report_json: summary.report, masks_dir: None })
+    };
+    crate::eval::run_with(&cmd.eval, &mut source)
+}

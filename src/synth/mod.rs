@@ -18,6 +18,19 @@
 //! - Ground truth goes to the sibling folder `<recording>.truth/`, which the station
 //!   never reads: `truth.json`, `mesh.obj` (the body in its mean pose, station frame),
 //!   `masks/{front,side}/NNNNNN.png` (255 = body) for every frame.
+//!
+//! # Commands
+//! - One recording: `fitstation synth --out recordings/NAME --seed N` (subject and
+//!   camera options override what the seed draws; `--format png|jpeg|mp4`).
+//! - The evaluation set (not stored; deterministic):
+//!   `fitstation synth-set --out /tmp/evalset --count 12` writes `subject_00` ..
+//!   `subject_11` from seeds 1000..1011, alternating female/male, builds spread over
+//!   the weight range; score fits with `fitstation eval /tmp/evalset/subject_*`.
+//!
+//! # Randomness
+//! Everything is drawn from [`rng::SplitMix64`] streams derived from the seed (subject,
+//! cameras, scene, film, per-frame noise and flicker), so a seed renders the same
+//! recording again (bit-exact on the same platform; libm may differ elsewhere).
 
 pub mod raster;
 pub mod rng;
@@ -49,8 +62,10 @@ pub const FRAME_LONG: u32 = 1280;
 pub const FRAME_SHORT: u32 = 720;
 /// Fraction of the image the body's box may fill at most (the rest is margin).
 pub const MAX_FILL: f64 = 0.94;
-/// Sway amplitude (degrees about the ankles) and period range (seconds).
-pub const SWAY_DEG: (f64, f64) = (0.1, 0.6);
+/// Sway amplitude (degrees about the ankles; 0.4 degrees moves the head by ~1.2 cm, as
+/// a person standing still does) and period range (seconds). `mesh.obj` is the mean
+/// pose; each frame's sway angles are in truth.json.
+pub const SWAY_DEG: (f64, f64) = (0.1, 0.4);
 pub const SWAY_PERIOD_S: (f64, f64) = (2.0, 5.0);
 /// Minimum number of empty frames at the start (formats.md).
 pub const MIN_EMPTY_FRAMES: usize = 10;
@@ -458,10 +473,12 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
             let background = Background::render(&scene, &camera);
             let mut with_shadow = Vec::new();
             background.with_shadows(&shadows, &mut with_shadow);
+            let mut film = Film::random(&mut frng);
+            film.auto_expose(&background.empty);
             ViewRenderer {
                 view,
                 camera,
-                film: Film::random(&mut frng),
+                film,
                 background,
                 with_shadow,
                 raster: Rasterizer::new(camera.intrinsics.width, camera.intrinsics.height),
@@ -530,26 +547,26 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
             });
             vr.raster.clear();
             if has_subject {
+                let body = scene::BodyFrame {
+                    posed: &posed,
+                    canonical: &canonical.positions,
+                    normals: &normals,
+                    triangles: &canonical.triangles,
+                };
                 scene::draw_body(
                     &scene,
                     &dress,
                     &vr.camera,
                     &mut vr.raster,
-                    &posed,
-                    &canonical.positions,
-                    &normals,
-                    &canonical.triangles,
+                    &body,
                     &mut vr.radiance,
                 );
             }
             let mut nrng =
                 SplitMix64::stream(cfg.seed, ((k as u64) << 8) | (0x10 + vr.view as u64));
-            let (w, h) = (vr.camera.intrinsics.width, vr.camera.intrinsics.height);
             vr.film.develop(
                 &mut vr.radiance,
                 &mut vr.scratch,
-                w,
-                h,
                 gain,
                 &mut nrng,
                 &mut vr.frame,
@@ -741,6 +758,27 @@ pub struct SynthArgs {
 
 /// Runs `fitstation synth`.
 pub fn run(args: SynthArgs) -> anyhow::Result<()> {
+    if let Some(d) = args.cameras.distance_m {
+        anyhow::ensure!(
+            (1.0..=8.0).contains(&d),
+            "--distance-m {d} is not a station distance (1 to 8 m)"
+        );
+    }
+    if let Some(h) = args.cameras.camera_height_m {
+        anyhow::ensure!(
+            (0.2..=2.6).contains(&h),
+            "--camera-height-m {h} is not a camera height (0.2 to 2.6 m)"
+        );
+    }
+    anyhow::ensure!(
+        args.fps > 0.0 && args.fps <= 240.0,
+        "--fps {} is not a frame rate",
+        args.fps
+    );
+    anyhow::ensure!(
+        args.subject_frames > 0,
+        "--subject-frames must be at least 1"
+    );
     let subject = args.subject.apply(SubjectParams::sample(args.seed))?;
     let cfg = SynthConfig {
         seed: args.seed,
@@ -792,11 +830,11 @@ pub struct SynthSetArgs {
 pub fn set_member(first_seed: u64, i: usize, count: usize) -> SynthConfig {
     let seed = first_seed + i as u64;
     let mut cfg = SynthConfig::from_seed(seed);
-    cfg.subject.gender = if i % 2 == 0 { 0.0 } else { 1.0 };
+    cfg.subject.gender = if i.is_multiple_of(2) { 0.0 } else { 1.0 };
     let pairs = count.div_ceil(2).max(1);
     cfg.subject.weight = 0.1 + 0.8 * ((i / 2) as f64 + 0.5) / pairs as f64;
-    cfg.subject.stature_m =
-        if i % 2 == 0 { 1.63 } else { 1.76 } + 0.06 * SplitMix64::stream(seed, 0x57).normal();
+    cfg.subject.stature_m = if i.is_multiple_of(2) { 1.63 } else { 1.76 }
+        + 0.06 * SplitMix64::stream(seed, 0x57).normal();
     cfg
 }
 

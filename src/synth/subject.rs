@@ -194,13 +194,19 @@ pub fn landmarks(mesh: &TriMesh) -> Landmarks {
     if let Some(c) = crotch {
         out.insert("crotch".into(), c.to_array());
     }
-    for (name, side) in [("left_armpit", 1.0), ("right_armpit", -1.0)] {
-        let mut best = None;
-        let mut y = b.min.y + 0.55 * h;
-        while y < b.min.y + 0.85 * h {
-            let loops = slice(mesh, &Plane::horizontal(y));
-            if let Some(torso) = torso_loop(&loops) {
-                let (tx0, tx1, tz0, tz1) = loop_extent(torso);
+    // Scan down from the shoulders: the first height at which an arm's section is
+    // separate from the torso's is that side's armpit.
+    let sides = [("left_armpit", 1.0), ("right_armpit", -1.0)];
+    let mut found: [Option<[f64; 3]>; 2] = [None, None];
+    let mut y = b.min.y + 0.85 * h;
+    while y > b.min.y + 0.55 * h && found.iter().any(|f| f.is_none()) {
+        let loops = slice(mesh, &Plane::horizontal(y));
+        if let Some(torso) = torso_loop(&loops) {
+            let (tx0, tx1, tz0, tz1) = loop_extent(torso);
+            for (k, &(_, side)) in sides.iter().enumerate() {
+                if found[k].is_some() {
+                    continue;
+                }
                 let torso_edge = if side > 0.0 { tx1 } else { tx0 };
                 // The arm: another closed loop beyond the torso on this side.
                 let arm = loops
@@ -211,13 +217,15 @@ pub fn landmarks(mesh: &TriMesh) -> Landmarks {
                 if let Some(arm) = arm {
                     let (ax0, ax1, _, _) = loop_extent(arm);
                     let arm_edge = if side > 0.0 { ax0 } else { ax1 };
-                    best = Some([0.5 * (torso_edge + arm_edge), y, 0.5 * (tz0 + tz1)]);
+                    found[k] = Some([0.5 * (torso_edge + arm_edge), y, 0.5 * (tz0 + tz1)]);
                 }
             }
-            y += SLICE_STEP_M;
         }
-        if let Some(p) = best {
-            out.insert(name.into(), p);
+        y -= SLICE_STEP_M;
+    }
+    for (k, (name, _)) in sides.iter().enumerate() {
+        if let Some(p) = found[k] {
+            out.insert((*name).into(), p);
         }
     }
     out
