@@ -33,12 +33,11 @@ impl MaskSpans {
             let row = &mask.data[y * w..(y + 1) * w];
             let mut x = 0;
             while x < w {
-                let Some(start) = row[x..].iter().position(|&v| v != 0) else {
+                let x0 = find_run_edge(row, x, true);
+                if x0 >= w {
                     break;
-                };
-                let x0 = x + start;
-                let len = row[x0..].iter().position(|&v| v == 0).unwrap_or(w - x0);
-                x = x0 + len;
+                }
+                x = find_run_edge(row, x0, false);
                 self.spans.push([x0 as u32, x as u32]);
             }
         }
@@ -55,6 +54,31 @@ impl MaskSpans {
         let (a, b) = (self.row_start[y] as usize, self.row_start[y + 1] as usize);
         self.spans[a..b].iter().any(|s| s[0] <= x && x < s[1])
     }
+}
+
+/// First index at or after `from` whose byte is non-zero (`nonzero`) or zero, else
+/// `row.len()`. Skips eight bytes at a time over uniform stretches (mask rows are long
+/// runs of 0 or 255).
+#[inline]
+pub fn find_run_edge(row: &[u8], from: usize, nonzero: bool) -> usize {
+    const WORD: usize = 8;
+    let skip = if nonzero { 0u64 } else { u64::MAX };
+    let mut x = from;
+    while x < row.len() {
+        if x + WORD <= row.len() {
+            let mut b = [0u8; WORD];
+            b.copy_from_slice(&row[x..x + WORD]);
+            if u64::from_ne_bytes(b) == skip {
+                x += WORD;
+                continue;
+            }
+        }
+        if (row[x] != 0) == nonzero {
+            return x;
+        }
+        x += 1;
+    }
+    row.len()
 }
 
 /// The nearest point of a contour to a query point.

@@ -133,7 +133,7 @@ impl SideAxis {
 
     fn row_axis(&self, k: usize) -> Option<f64> {
         let (a, b) = (*self.min_u.get(k)?, *self.max_u.get(k)?);
-        (a <= b).then(|| 0.5 * (a + b))
+        (a <= b).then_some(0.5 * (a + b))
     }
 
     /// The axis z at height `y` on the plane x = 0.

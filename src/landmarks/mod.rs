@@ -396,6 +396,7 @@ struct ViewState {
     resampled: Vec<DVec2>,
     scratch: Vec<DVec2>,
     normalized: Vec<DVec2>,
+    fill_scratch: Vec<(u32, f32)>,
     target: SilhouetteTarget,
 }
 
@@ -427,6 +428,7 @@ impl SilhouetteExecutor {
                 resampled: Vec::new(),
                 scratch: Vec::new(),
                 normalized: Vec::new(),
+                fill_scratch: Vec::new(),
                 target: SilhouetteTarget::default(),
             }
         };
@@ -551,6 +553,11 @@ impl SilhouetteExecutor {
                 &self.opts,
                 &mut analysis.contour,
             );
+            // The mask from the sub-pixel contour: its border on the edge's 50 % level.
+            if !analysis.contour.is_empty() {
+                analysis.stats.person_px =
+                    contour::fill_polygon(&analysis.contour.points, mask, &mut state.fill_scratch);
+            }
             // Plane coordinates (front: z = 0, side: x = 0) and orientation.
             let cam = self.calib.camera(view);
             state.normalized.clear();
@@ -699,10 +706,7 @@ fn trace_person(
     );
     contour::resample_closed(&state.chain_f, CHAIN_SPACING_PX, &mut state.resampled);
     let model = &state.model;
-    let (w, h) = (frame.width() as i64, frame.height() as i64);
-    let score = |x: i64, y: i64| -> f32 {
-        model.distance(frame, x.clamp(0, w - 1) as u32, y.clamp(0, h - 1) as u32)
-    };
+    let score = |x: i64, y: i64| -> f32 { model.distance_clamped(frame, x, y) };
     contour::refine_subpixel(
         &mut state.resampled,
         &score,

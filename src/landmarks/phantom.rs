@@ -29,6 +29,9 @@ const WALL_DISTANCE_M: f64 = 1.3;
 const SHADOW_HALF_X_M: f64 = 0.38;
 const SHADOW_HALF_Z_M: f64 = 0.32;
 const SHADOW_FACTOR: f64 = 0.55;
+/// A limb segment's axis, from one joint to the next.
+pub type AxisSegment = (DVec3, DVec3);
+
 /// Limb capsules per side in `Phantom::new` (upper arm, forearm, hand, thigh, shank, foot).
 const PRIMS_PER_SIDE: usize = 6;
 /// Supersampling grid per pixel on the silhouette's edge.
@@ -206,7 +209,7 @@ impl Phantom {
 
     /// Axis segments of one side's arm (upper arm, forearm, hand) and leg (thigh, shank);
     /// `side` is +1 for the subject's left, -1 for the right.
-    pub fn limb_axes(&self, side: f64) -> (Vec<(DVec3, DVec3)>, Vec<(DVec3, DVec3)>) {
+    pub fn limb_axes(&self, side: f64) -> (Vec<AxisSegment>, Vec<AxisSegment>) {
         // Layout of `new`: neck, shoulders, then six limb capsules per side (right first).
         let base = 2 + if side > 0.0 { PRIMS_PER_SIDE } else { 0 };
         let axis = |k: usize| match self.prims.get(base + k).map(|p| p.shape) {

@@ -29,7 +29,7 @@ use image::RgbImage;
 /// Subsampling factor of the coarse grid.
 pub const COARSE: u32 = 2;
 /// Rows of the model updated per frame: one in `ADAPT_ROW_STRIDE`.
-const ADAPT_ROW_STRIDE: u64 = 16;
+const ADAPT_ROW_STRIDE: u64 = 32;
 /// Margin around the person's box (pixels) kept out of adaptation.
 const ADAPT_MARGIN_PX: u32 = 24;
 /// Sensor noise assumed when the model was learned from a single frame (8-bit units).
@@ -396,7 +396,7 @@ impl BackgroundModel {
             e_q8: m.map(|v| (v * COLOR_Q + 0.5) as u16),
             tau2: tau2_q,
         };
-        if x % COARSE as usize == 0 && y % COARSE as usize == 0 {
+        if x.is_multiple_of(COARSE as usize) && y.is_multiple_of(COARSE as usize) {
             let cw = (self.width as usize).div_ceil(COARSE as usize);
             let k = (y / COARSE as usize) * cw + x / COARSE as usize;
             let c = &mut self.coarse_model;
@@ -434,6 +434,23 @@ impl BackgroundModel {
             && (chroma_ee > ck * tau2 * ee
                 || de < (o.shadow_min_brightness - 1.0) * ee
                 || de > (o.highlight_max_brightness - 1.0) * ee)
+    }
+
+    /// Colour distance to the model of the pixel nearest (x, y) inside the frame (8-bit
+    /// units): the sub-pixel edge score. 0 when the frame does not fit the model.
+    #[inline]
+    pub fn distance_clamped(&self, frame: &RgbImage, x: i64, y: i64) -> f32 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let p = frame.as_raw();
+        if w == 0 || h == 0 || p.len() != self.px.len() * 3 {
+            return 0.0;
+        }
+        let i = (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize;
+        let e = self.px[i].color();
+        let dr = p[3 * i] as f32 - e[0];
+        let dg = p[3 * i + 1] as f32 - e[1];
+        let db = p[3 * i + 2] as f32 - e[2];
+        (dr * dr + dg * dg + db * db).sqrt()
     }
 
     /// Colour distance of a pixel to the model (8-bit units): the sub-pixel edge score.
@@ -870,6 +887,54 @@ mod tests {
         assert_eq!(st.large_components, 1);
         assert_eq!(st.person_px, mask.area());
         assert!(!st.touches.bottom);
+    }
+
+    fn scaled(img: &RgbImage, gain: f32) -> RgbImage {
+        let mut out = img.clone();
+        for p in out.pixels_mut() {
+            p.0 =
+                p.0.map(|v| (v as f32 * gain).round().clamp(0.0, 255.0) as u8);
+        }
+        out
+    }
+
+    #[test]
+    fn the_model_follows_a_slow_light_drift_where_nobody_is() {
+        let (w, h) = (120, 100);
+        let opts = SegmentOptions {
+            adapt_rate: 1.0,
+            ..Default::default()
+        };
+        let mut adaptive = BackgroundModel::new(w, h, opts);
+        let mut fixed = BackgroundModel::new(
+            w,
+            h,
+            SegmentOptions {
+                adapt_rate: 0.0,
+                ..opts
+            },
+        );
+        let empty = scene(w, h, false, false, 3);
+        adaptive.learn(&empty).unwrap();
+        fixed.learn(&empty).unwrap();
+        let mut mask = Mask::new(1, 1);
+        // Light rising in steps each within the brightness tolerance, a full sweep of
+        // the adaptation's rows per step.
+        for gain in [1.15f32, 1.32, 1.5] {
+            for _ in 0..ADAPT_ROW_STRIDE {
+                adaptive.segment(&scaled(&empty, gain), &mut mask).unwrap();
+            }
+        }
+        let bright = scaled(&scene(w, h, true, false, 4), 1.5);
+        let st = adaptive.segment(&bright, &mut mask).unwrap();
+        let box_ = st.person_box.unwrap();
+        assert!(
+            box_.min_x >= 36 && box_.max_x <= 74 && box_.min_y >= 16 && box_.max_y <= 94,
+            "{box_:?}"
+        );
+        // Without adaptation the whole brighter frame is foreground.
+        let st = fixed.segment(&bright, &mut mask).unwrap();
+        assert!(st.person_px > (w * h) as u64 / 2, "{}", st.person_px);
     }
 
     #[test]
