@@ -15,10 +15,14 @@ fn bench(c: &mut Criterion) {
             black_box(&buf);
         })
     });
-    c.bench_function("prepare (template)", |b| b.iter(|| black_box(prepare(&lib.template().mesh))));
+    c.bench_function("prepare (template)", |b| {
+        b.iter(|| black_box(prepare(&lib.template().mesh)))
+    });
     let mut g = c.benchmark_group("load");
     g.sample_size(10);
-    g.bench_function("load_default", |b| b.iter(|| black_box(ShapeLibrary::load_default())));
+    g.bench_function("load_default", |b| {
+        b.iter(|| black_box(ShapeLibrary::load_default()))
+    });
     g.finish();
 }
 

@@ -3,7 +3,11 @@
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
+#[command(
+    name = "fitstation",
+    version,
+    about = "Two-camera capture-and-fit body measurement station"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -59,7 +63,9 @@ fn main() -> anyhow::Result<()> {
         Command::Synth(args) => fitstation::synth::run(args)?,
         Command::SynthSet(args) => fitstation::synth::run_set(args)?,
         Command::Eval(args) => fitstation::station::cli::run_eval(&args)?,
-        Command::Bench { what: BenchCommand::Deform(args) } => fitstation::deform::bench::run(args)?,
+        Command::Bench {
+            what: BenchCommand::Deform(args),
+        } => fitstation::deform::bench::run(args)?,
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
         Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,
         Command::DemoUi(args) => fitstation::app::run_demo_cli(args)?,

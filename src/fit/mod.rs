@@ -252,10 +252,6 @@ impl Fitter {
                 }
             }
         }
-        if std::env::var_os("FITSTATION_DEBUG").is_some() {
-            let _ =
-                crate::mesh::io::write_obj(std::path::Path::new("/tmp/fit_candidate.obj"), &s.rest);
-        }
         // Residual after the solve.
         let mut sum = 0.0;
         let mut n = 0usize;

@@ -166,7 +166,14 @@ impl<T> Default for LatestSlot<T> {
 
 impl<T> LatestSlot<T> {
     pub fn new() -> Self {
-        LatestSlot { inner: Mutex::new(SlotState { item: None, closed: false, dropped: 0 }), ready: Condvar::new() }
+        LatestSlot {
+            inner: Mutex::new(SlotState {
+                item: None,
+                closed: false,
+                dropped: 0,
+            }),
+            ready: Condvar::new(),
+        }
     }
     fn lock(&self) -> std::sync::MutexGuard<'_, SlotState<T>> {
         // A poisoned lock only means another thread panicked mid-put; the data is a

@@ -31,7 +31,11 @@ impl SmoothedValue {
         let mut v: Vec<f64> = self.recent.iter().copied().collect();
         v.sort_by(|a, b| a.total_cmp(b));
         let n = v.len();
-        Some(if n % 2 == 1 { v[n / 2] } else { 0.5 * (v[n / 2 - 1] + v[n / 2]) })
+        Some(if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        })
     }
     /// Spread of the window (mm); infinite until three values are in.
     pub fn stability(&self) -> f64 {
@@ -44,7 +48,11 @@ impl SmoothedValue {
     }
     /// Largest change between consecutive values in the window (mm).
     pub fn max_step(&self) -> f64 {
-        self.recent.iter().zip(self.recent.iter().skip(1)).map(|(a, b)| (b - a).abs()).fold(0.0, f64::max)
+        self.recent
+            .iter()
+            .zip(self.recent.iter().skip(1))
+            .map(|(a, b)| (b - a).abs())
+            .fold(0.0, f64::max)
     }
     pub fn len(&self) -> usize {
         self.recent.len()

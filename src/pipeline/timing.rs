@@ -19,7 +19,10 @@ impl Default for FrameTimer {
 
 impl FrameTimer {
     pub fn start() -> Self {
-        FrameTimer { last: Instant::now(), stages: Vec::new() }
+        FrameTimer {
+            last: Instant::now(),
+            stages: Vec::new(),
+        }
     }
     /// Closes the current stage under `name`; returns its duration in ms.
     pub fn lap(&mut self, name: &str) -> f64 {
@@ -73,7 +76,13 @@ impl TimingStats {
             .iter()
             .filter_map(|s| {
                 let v = self.samples.get(s)?;
-                Some((s.clone(), StageSummary { median: percentile(v, 0.5), p95: percentile(v, 0.95) }))
+                Some((
+                    s.clone(),
+                    StageSummary {
+                        median: percentile(v, 0.5),
+                        p95: percentile(v, 0.95),
+                    },
+                ))
             })
             .collect()
     }
@@ -81,7 +90,10 @@ impl TimingStats {
     pub fn to_json(&self) -> serde_json::Value {
         let mut m = serde_json::Map::new();
         for (s, sum) in self.summary() {
-            m.insert(s, serde_json::json!({"median": round3(sum.median), "p95": round3(sum.p95)}));
+            m.insert(
+                s,
+                serde_json::json!({"median": round3(sum.median), "p95": round3(sum.p95)}),
+            );
         }
         serde_json::Value::Object(m)
     }

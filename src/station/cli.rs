@@ -93,8 +93,13 @@ pub struct RecordingSource {
 
 impl RecordingSource {
     pub fn open(dir: &Path) -> anyhow::Result<Self> {
-        let rec = Recording::open(dir).with_context(|| format!("cannot open recording {}", dir.display()))?;
-        Ok(RecordingSource { rec, next: 0, name: format!("recording {}", dir.display()) })
+        let rec = Recording::open(dir)
+            .with_context(|| format!("cannot open recording {}", dir.display()))?;
+        Ok(RecordingSource {
+            rec,
+            next: 0,
+            name: format!("recording {}", dir.display()),
+        })
     }
     pub fn recording(&self) -> &Recording {
         &self.rec
@@ -110,7 +115,12 @@ impl FrameSource for RecordingSource {
         self.next += 1;
         let fps = self.rec.metadata().fps.max(1e-3);
         match self.rec.frame_pair(k) {
-            Ok((front, side)) => Ok(Some(FramePair { index: k as u64, timestamp_s: k as f64 / fps, front, side })),
+            Ok((front, side)) => Ok(Some(FramePair {
+                index: k as u64,
+                timestamp_s: k as f64 / fps,
+                front,
+                side,
+            })),
             Err(e) => Err(SourceError::Skipped(format!("frame {k}: {e}"))),
         }
     }
@@ -133,7 +143,12 @@ pub struct RunSummary {
 }
 
 /// Runs a processor over every frame of a source (no frame dropped: offline replay).
-pub fn run_offline(source: &mut dyn FrameSource, proc_: &mut StationProcessor, max_frames: Option<usize>, progress: bool) -> RunSummary {
+pub fn run_offline(
+    source: &mut dyn FrameSource,
+    proc_: &mut StationProcessor,
+    max_frames: Option<usize>,
+    progress: bool,
+) -> RunSummary {
     let mut timings = TimingStats::default();
     let mut messages: Vec<String> = Vec::new();
     let mut series = Vec::new();
@@ -160,7 +175,11 @@ pub fn run_offline(source: &mut dyn FrameSource, proc_: &mut StationProcessor, m
         n += 1;
         let snap = proc_.process(&pair);
         if progress {
-            eprint!("\rframe {:>4}  {:<20}", pair.index, format!("{:?}", snap.phase));
+            eprint!(
+                "\rframe {:>4}  {:<20}",
+                pair.index,
+                format!("{:?}", snap.phase)
+            );
         }
         if snap.phase != Phase::LearningBackdrop {
             timings.add_all(&snap.timings_ms);
@@ -191,11 +210,20 @@ pub fn run_offline(source: &mut dyn FrameSource, proc_: &mut StationProcessor, m
             stab.insert(mv.name.clone(), round1(mv.stability_mm).into());
         }
     }
-    let steps: serde_json::Map<String, serde_json::Value> = proc_.max_steps().into_iter().map(|(k, v)| (k, round1(v).into())).collect();
+    let steps: serde_json::Map<String, serde_json::Value> = proc_
+        .max_steps()
+        .into_iter()
+        .map(|(k, v)| (k, round1(v).into()))
+        .collect();
     let landmarks: serde_json::Map<String, serde_json::Value> = proc_
         .last_landmarks
         .iter()
-        .map(|(k, p)| (k.clone(), serde_json::json!({"x": round4(p.x), "y": round4(p.y), "z": round4(p.z)})))
+        .map(|(k, p)| {
+            (
+                k.clone(),
+                serde_json::json!({"x": round4(p.x), "y": round4(p.y), "z": round4(p.z)}),
+            )
+        })
         .collect();
     let report = serde_json::json!({
         "measurements_mm": meas,
@@ -208,7 +236,11 @@ pub fn run_offline(source: &mut dyn FrameSource, proc_: &mut StationProcessor, m
         "messages": messages,
         "series": series,
     });
-    RunSummary { report, avatar: proc_.avatar().map(|a| (*a).clone()), last }
+    RunSummary {
+        report,
+        avatar: proc_.avatar().map(|a| (*a).clone()),
+        last,
+    }
 }
 
 fn round1(v: f64) -> f64 {
@@ -220,7 +252,9 @@ fn round4(v: f64) -> f64 {
 
 /// Loads the default shape library (embedded in the binary).
 pub fn default_library() -> anyhow::Result<Arc<ShapeLibrary>> {
-    Ok(Arc::new(ShapeLibrary::load_default().context("cannot load the shape library")?))
+    Ok(Arc::new(
+        ShapeLibrary::load_default().context("cannot load the shape library")?,
+    ))
 }
 
 /// `fitstation replay`.
@@ -253,8 +287,20 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
 
 fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result<()> {
     let Some(avatar) = summary.avatar else {
-        let msgs = summary.report["messages"].as_array().map(|a| a.iter().filter_map(|m| m.as_str()).collect::<Vec<_>>().join("; ")).unwrap_or_default();
-        bail!("no frame could be fitted ({} frames, {} with a subject): {msgs}", summary.report["frames"]["total"], summary.report["frames"]["with_subject"]);
+        let msgs = summary.report["messages"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|m| m.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            })
+            .unwrap_or_default();
+        bail!(
+            "no frame could be fitted ({} frames, {} with a subject): {msgs}",
+            summary.report["frames"]["total"],
+            summary.report["frames"]["with_subject"]
+        );
     };
     if let Some(out) = out {
         write_fit_outputs(out, &avatar, &summary.report)?;
@@ -264,7 +310,11 @@ fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result
     } else {
         print_table(&summary.report);
         if let Some(out) = out {
-            println!("wrote {}/avatar.obj and {}/report.json", out.display(), out.display());
+            println!(
+                "wrote {}/avatar.obj and {}/report.json",
+                out.display(),
+                out.display()
+            );
         }
     }
     Ok(())
@@ -276,14 +326,25 @@ fn print_table(report: &serde_json::Value) {
         let v = report["measurements_mm"][k].as_f64();
         let s = report["stability_mm"][k].as_f64();
         match v {
-            Some(v) => println!("{:<20} {:>10.1} {:>12}", k, v, s.map(|s| format!("±{s:.1}")).unwrap_or_else(|| "-".into())),
+            Some(v) => println!(
+                "{:<20} {:>10.1} {:>12}",
+                k,
+                v,
+                s.map(|s| format!("±{s:.1}")).unwrap_or_else(|| "-".into())
+            ),
             None => println!("{k:<20} {:>10}", "-"),
         }
     }
     let f = &report["frames"];
-    println!("frames: {} total, {} with subject, {} fitted", f["total"], f["with_subject"], f["fitted"]);
+    println!(
+        "frames: {} total, {} with subject, {} fitted",
+        f["total"], f["with_subject"], f["fitted"]
+    );
     if let Some(t) = report["timings_ms"].as_object() {
-        let parts: Vec<String> = t.iter().map(|(k, v)| format!("{k} {:.2}", v["median"].as_f64().unwrap_or(0.0))).collect();
+        let parts: Vec<String> = t
+            .iter()
+            .map(|(k, v)| format!("{k} {:.2}", v["median"].as_f64().unwrap_or(0.0)))
+            .collect();
         println!("median ms per frame pair: {}", parts.join(", "));
     }
 }
@@ -310,12 +371,15 @@ pub struct FitArgs {
 }
 
 fn load_rgb(path: &Path) -> anyhow::Result<image::RgbImage> {
-    Ok(image::open(path).with_context(|| format!("cannot read image {}", path.display()))?.to_rgb8())
+    Ok(image::open(path)
+        .with_context(|| format!("cannot read image {}", path.display()))?
+        .to_rgb8())
 }
 
 /// `fitstation fit` on two stills (with optional empty-scene images).
 pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
-    let calib = StationCalibration::load(&args.calib).with_context(|| format!("cannot read calibration {}", args.calib.display()))?;
+    let calib = StationCalibration::load(&args.calib)
+        .with_context(|| format!("cannot read calibration {}", args.calib.display()))?;
     let front = load_rgb(&args.front)?;
     let side = load_rgb(&args.side)?;
     calib.check_frame_size(crate::camera::View::Front, front.width(), front.height())?;
@@ -325,19 +389,36 @@ pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
         (Some(fb), Some(sb)) => {
             opts.backdrop_frames = 1;
             vec![
-                FramePair { index: 0, timestamp_s: 0.0, front: load_rgb(fb)?, side: load_rgb(sb)? },
-                FramePair { index: 1, timestamp_s: 0.0, front, side },
+                FramePair {
+                    index: 0,
+                    timestamp_s: 0.0,
+                    front: load_rgb(fb)?,
+                    side: load_rgb(sb)?,
+                },
+                FramePair {
+                    index: 1,
+                    timestamp_s: 0.0,
+                    front,
+                    side,
+                },
             ]
         }
         (None, None) => {
             opts.backdrop_frames = 0;
             opts.still_keying = true;
-            vec![FramePair { index: 0, timestamp_s: 0.0, front, side }]
+            vec![FramePair {
+                index: 0,
+                timestamp_s: 0.0,
+                front,
+                side,
+            }]
         }
         _ => bail!("give both --front-bg and --side-bg, or neither"),
     };
     let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
-    let mut source = VecSource { pairs: pairs.into_iter() };
+    let mut source = VecSource {
+        pairs: pairs.into_iter(),
+    };
     let summary = run_offline(&mut source, &mut proc_, None, false);
     finish(summary, Some(&args.out), args.fit.json)
 }
@@ -382,13 +463,22 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
     if cmd.baseline {
         let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
             let truth = crate::synth::load_truth(&crate::synth::truth_dir(rec))?;
-            let stature = truth.measurements_mm.get("stature").copied().context("truth has no stature")? / 1000.0;
+            let stature = truth
+                .measurements_mm
+                .get("stature")
+                .copied()
+                .context("truth has no stature")?
+                / 1000.0;
             let mut avatar = library.template().mesh.clone();
             let h = avatar.bounds().map(|b| b.size().y).unwrap_or(1.0).max(1e-6);
             avatar.map_positions(|p| p * (stature / h));
             let m = crate::measure::measure(&avatar)?;
             let report = serde_json::json!({ "measurements_mm": m.to_report_map() });
-            Ok(crate::eval::FitResult { avatar, report_json: report, masks_dir: None })
+            Ok(crate::eval::FitResult {
+                avatar,
+                report_json: report,
+                masks_dir: None,
+            })
         };
         return crate::eval::run_with(&cmd.eval, &mut source);
     }
@@ -403,8 +493,14 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
         }
         let mut proc_ = StationProcessor::new(calib, library.clone(), o)?;
         let summary = run_offline(&mut src, &mut proc_, None, false);
-        let avatar = summary.avatar.with_context(|| format!("no frame could be fitted: {}", summary.report["messages"]))?;
-        Ok(crate::eval::FitResult { avatar, report_json: summary.report, masks_dir: None })
+        let avatar = summary
+            .avatar
+            .with_context(|| format!("no frame could be fitted: {}", summary.report["messages"]))?;
+        Ok(crate::eval::FitResult {
+            avatar,
+            report_json: summary.report,
+            masks_dir: None,
+        })
     };
     crate::eval::run_with(&cmd.eval, &mut source)
 }

@@ -15,17 +15,28 @@ use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
 use crate::fit::correspond::MaskRef;
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
-use crate::landmarks::{LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict, ViewAnalysis};
+use crate::landmarks::{
+    LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict, ViewAnalysis,
+};
 use crate::measure::Measurements;
 use crate::mesh::TriMesh;
 use crate::pipeline::smooth::SmoothedValue;
 use crate::pipeline::timing::FrameTimer;
-use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, MeasurementValue, Phase, ViewOverlay};
+use crate::pipeline::{
+    FitSnapshot, FramePair, FrameProcessor, MeasurementValue, Phase, ViewOverlay,
+};
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
 
 /// Measurement report keys in display order (`report.json` `measurements_mm`).
-pub const MEASUREMENT_KEYS: [&str; 6] = ["stature", "chest_girth", "waist_girth", "hip_girth", "thigh_girth_left", "thigh_girth_right"];
+pub const MEASUREMENT_KEYS: [&str; 6] = [
+    "stature",
+    "chest_girth",
+    "waist_girth",
+    "hip_girth",
+    "thigh_girth_left",
+    "thigh_girth_right",
+];
 
 /// Options of the station processor.
 #[derive(Debug, Clone)]
@@ -79,7 +90,11 @@ pub struct StationProcessor {
 }
 
 impl StationProcessor {
-    pub fn new(calib: StationCalibration, library: Arc<ShapeLibrary>, opts: StationOptions) -> Result<Self, crate::fit::FitError> {
+    pub fn new(
+        calib: StationCalibration,
+        library: Arc<ShapeLibrary>,
+        opts: StationOptions,
+    ) -> Result<Self, crate::fit::FitError> {
         let fitter = Fitter::new(library, opts.fit.clone())?;
         Ok(StationProcessor {
             silhouettes: SilhouetteExecutor::new(&calib, opts.silhouette),
@@ -101,13 +116,23 @@ impl StationProcessor {
         MEASUREMENT_KEYS
             .iter()
             .zip(&self.smoothed)
-            .filter_map(|(k, s)| Some(MeasurementValue { name: k.to_string(), value_mm: s.value()?, stability_mm: s.stability() }))
+            .filter_map(|(k, s)| {
+                Some(MeasurementValue {
+                    name: k.to_string(),
+                    value_mm: s.value()?,
+                    stability_mm: s.stability(),
+                })
+            })
             .collect()
     }
 
     /// Largest frame-to-frame change of each girth over the recent window (mm).
     pub fn max_steps(&self) -> Vec<(String, f64)> {
-        MEASUREMENT_KEYS.iter().zip(&self.smoothed).map(|(k, s)| (k.to_string(), s.max_step())).collect()
+        MEASUREMENT_KEYS
+            .iter()
+            .zip(&self.smoothed)
+            .map(|(k, s)| (k.to_string(), s.max_step()))
+            .collect()
     }
 
     pub fn avatar(&self) -> Option<Arc<TriMesh>> {
@@ -115,12 +140,17 @@ impl StationProcessor {
     }
 
     fn is_settled(&self) -> bool {
-        self.smoothed.iter().all(|s| s.len() >= 3 && s.stability() <= self.opts.settled_mm)
+        self.smoothed
+            .iter()
+            .all(|s| s.len() >= 3 && s.stability() <= self.opts.settled_mm)
     }
 
     fn process_inner(&mut self, pair: &FramePair, timer: &mut FrameTimer) -> FitSnapshot {
         self.counts.total += 1;
-        for (view, img) in [(crate::camera::View::Front, &pair.front), (crate::camera::View::Side, &pair.side)] {
+        for (view, img) in [
+            (crate::camera::View::Front, &pair.front),
+            (crate::camera::View::Side, &pair.side),
+        ] {
             if let Err(e) = self.calib.check_frame_size(view, img.width(), img.height()) {
                 let mut s = FitSnapshot::empty(pair.index, Phase::LearningBackdrop);
                 s.messages.push(e.to_string());
@@ -134,7 +164,13 @@ impl StationProcessor {
                 Err(e) => s.messages.push(format!("backdrop frame skipped: {e}")),
             }
             timer.lap("learn_backdrop");
-            s.messages.insert(0, format!("Learning the empty scene ({}/{})", self.learned, self.opts.backdrop_frames));
+            s.messages.insert(
+                0,
+                format!(
+                    "Learning the empty scene ({}/{})",
+                    self.learned, self.opts.backdrop_frames
+                ),
+            );
             return s;
         }
         let result = match self.silhouettes.process(&pair.front, &pair.side) {
@@ -153,7 +189,11 @@ impl StationProcessor {
             return s;
         }
         self.counts.with_subject += 1;
-        let blocking: Vec<String> = verdicts.iter().filter(|v| blocks_fit(v)).map(|v| v.message()).collect();
+        let blocking: Vec<String> = verdicts
+            .iter()
+            .filter(|v| blocks_fit(v))
+            .map(|v| v.message())
+            .collect();
         if !blocking.is_empty() {
             let mut s = self.snapshot(pair.index, Phase::Guiding, Some(&result));
             s.messages.extend(blocking);
@@ -161,14 +201,30 @@ impl StationProcessor {
         }
         let Some(obs) = observation(&result, self.opts.stature_m) else {
             let mut s = self.snapshot(pair.index, Phase::Guiding, Some(&result));
-            s.messages.push("The landmarks could not be found in this frame.".into());
+            s.messages
+                .push("The landmarks could not be found in this frame.".into());
             return s;
         };
         let masks = &result.masks;
-        let front = MaskRef { width: masks.front.width, height: masks.front.height, data: &masks.front.data };
-        let side = MaskRef { width: masks.side.width, height: masks.side.height, data: &masks.side.data };
-        let fit = self.fitter.fit(&self.calib, front, side, &obs).map(|(p, st)| (p.to_vec(), st));
-        timer.lap(if self.last_fit.is_some() { "refit" } else { "first_fit" });
+        let front = MaskRef {
+            width: masks.front.width,
+            height: masks.front.height,
+            data: &masks.front.data,
+        };
+        let side = MaskRef {
+            width: masks.side.width,
+            height: masks.side.height,
+            data: &masks.side.data,
+        };
+        let fit = self
+            .fitter
+            .fit(&self.calib, front, side, &obs)
+            .map(|(p, st)| (p.to_vec(), st));
+        timer.lap(if self.last_fit.is_some() {
+            "refit"
+        } else {
+            "first_fit"
+        });
         let (positions, stats) = match fit {
             Ok(x) => x,
             Err(e) => {
@@ -200,10 +256,24 @@ impl StationProcessor {
         timer.lap("measure");
         self.last_avatar = Some(Arc::new(avatar));
         self.last_fit = Some(stats);
-        self.last_landmarks = result.landmarks.points.iter().map(|p| (p.name.clone(), p.station)).collect();
-        let phase = if self.is_settled() { Phase::Settled } else { Phase::Fitting };
+        self.last_landmarks = result
+            .landmarks
+            .points
+            .iter()
+            .map(|p| (p.name.clone(), p.station))
+            .collect();
+        let phase = if self.is_settled() {
+            Phase::Settled
+        } else {
+            Phase::Fitting
+        };
         let mut s = self.snapshot(pair.index, phase, Some(&result));
-        s.messages.extend(verdicts.iter().filter(|v| !blocks_fit(v) && !matches!(v, Verdict::NoPerson)).map(|v| v.message()));
+        s.messages.extend(
+            verdicts
+                .iter()
+                .filter(|v| !blocks_fit(v) && !matches!(v, Verdict::NoPerson))
+                .map(|v| v.message()),
+        );
         s
     }
 
@@ -212,7 +282,12 @@ impl StationProcessor {
         if let Some(r) = result {
             s.front = overlay(&r.front);
             s.side = overlay(&r.side);
-            s.landmarks_station = r.landmarks.points.iter().map(|p| (p.name.clone(), p.station)).collect();
+            s.landmarks_station = r
+                .landmarks
+                .points
+                .iter()
+                .map(|p| (p.name.clone(), p.station))
+                .collect();
         }
         if let Some(av) = &self.last_avatar {
             s.front.avatar_outline = avatar_outline(av, &self.calib.front);
@@ -268,16 +343,38 @@ fn observation(r: &SilhouetteResult, stature_override: Option<f64>) -> Option<Ob
         return None;
     }
     let get = |n: LandmarkName| lm.get(n).map(|p| p.station);
-    let hip = get(LandmarkName::Hip).or_else(|| get(LandmarkName::Crotch).map(|c| c + DVec3::new(0.0, 0.05, 0.0)))?;
+    let hip = get(LandmarkName::Hip)
+        .or_else(|| get(LandmarkName::Crotch).map(|c| c + DVec3::new(0.0, 0.05, 0.0)))?;
     let angle = |a: Option<DVec3>, b: Option<DVec3>, side: f64| -> Option<f64> {
         let d = b? - a?;
         Some((d.x * side).atan2(-d.y))
     };
-    let arms = angle(get(LandmarkName::ShoulderLeft), get(LandmarkName::WristLeft), 1.0)
-        .zip(angle(get(LandmarkName::ShoulderRight), get(LandmarkName::WristRight), -1.0));
-    let legs = angle(get(LandmarkName::ThighRootLeft), get(LandmarkName::AnkleLeft), 1.0)
-        .zip(angle(get(LandmarkName::ThighRootRight), get(LandmarkName::AnkleRight), -1.0));
-    Some(Observation { stature_m: stature, torso_point: hip, arm_angles: arms, leg_angles: legs })
+    let arms = angle(
+        get(LandmarkName::ShoulderLeft),
+        get(LandmarkName::WristLeft),
+        1.0,
+    )
+    .zip(angle(
+        get(LandmarkName::ShoulderRight),
+        get(LandmarkName::WristRight),
+        -1.0,
+    ));
+    let legs = angle(
+        get(LandmarkName::ThighRootLeft),
+        get(LandmarkName::AnkleLeft),
+        1.0,
+    )
+    .zip(angle(
+        get(LandmarkName::ThighRootRight),
+        get(LandmarkName::AnkleRight),
+        -1.0,
+    ));
+    Some(Observation {
+        stature_m: stature,
+        torso_point: hip,
+        arm_angles: arms,
+        leg_angles: legs,
+    })
 }
 
 fn overlay(a: &ViewAnalysis) -> ViewOverlay {
@@ -287,9 +384,21 @@ fn overlay(a: &ViewAnalysis) -> ViewOverlay {
         parts: a
             .parts
             .iter()
-            .map(|p| (p.name.clone(), p.range.indices(pts.len()).filter_map(|i| pts.get(i).copied()).collect()))
+            .map(|p| {
+                (
+                    p.name.clone(),
+                    p.range
+                        .indices(pts.len())
+                        .filter_map(|i| pts.get(i).copied())
+                        .collect(),
+                )
+            })
             .collect(),
-        landmarks: a.landmarks_px.iter().map(|(n, p)| (n.as_str().to_string(), *p)).collect(),
+        landmarks: a
+            .landmarks_px
+            .iter()
+            .map(|(n, p)| (n.as_str().to_string(), *p))
+            .collect(),
         bones: bones(a),
         avatar_outline: Vec::new(),
     }
@@ -321,7 +430,11 @@ fn bones(a: &ViewAnalysis) -> Vec<(DVec2, DVec2)> {
 /// sides), enough to show how the fit sits on the silhouette.
 fn avatar_outline(av: &TriMesh, cam: &crate::camera::Camera) -> Vec<DVec2> {
     const BAND_PX: f64 = 6.0;
-    let proj: Vec<DVec2> = av.positions.iter().filter_map(|p| cam.project(*p)).collect();
+    let proj: Vec<DVec2> = av
+        .positions
+        .iter()
+        .filter_map(|p| cam.project(*p))
+        .collect();
     if proj.is_empty() {
         return Vec::new();
     }
