@@ -92,9 +92,10 @@ fn fit_on_true_silhouettes_recovers_girths() {
                 );
             }
             for (k, got, want) in rows {
-                // Not yet the targets (chest 14, waist/hip 12, thigh 6 mm): a guard
-                // against a broken fit, to tighten as the fit improves.
-                let tol = if k == "stature" { 8.0 } else { 45.0 };
+                // Not yet the targets (chest 14, waist/hip 12, thigh 6 mm; the README
+                // has the measured errors): a guard against a broken fit (errors of hundreds
+                // of mm, or none at all), to tighten as the fit improves.
+                let tol = if k == "stature" { 8.0 } else { 0.15 * want };
                 assert!(
                     (got - want).abs() < tol,
                     "seed {seed} {variant:?} {k}: {got:.1} vs {want:.1}"

@@ -60,17 +60,12 @@ fn luminance_std(px: &[[u8; 3]]) -> f64 {
     (l.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / n).sqrt()
 }
 
-fn run_window(shot: &Path) -> Result<(), String> {
+fn run_window(shot: &Path, command: &[&str]) -> Result<(), String> {
     let bin = env!("CARGO_BIN_EXE_fitstation");
     let mut child = Command::new("xvfb-run")
-        .args([
-            "-a",
-            "-s",
-            "-screen 0 1600x900x24",
-            bin,
-            "demo-ui",
-            "--screenshot",
-        ])
+        .args(["-a", "-s", "-screen 0 1600x900x24", bin])
+        .args(command)
+        .arg("--screenshot")
         .arg(shot)
         .args(["--exit-after-frames", &FRAMES.to_string()])
         .stdout(Stdio::piped())
@@ -102,7 +97,7 @@ fn run_window(shot: &Path) -> Result<(), String> {
     println!("{stdout}");
     if !out.status.success() {
         return Err(format!(
-            "demo-ui failed ({}):\n{stdout}\n{stderr}",
+            "{command:?} failed ({}):\n{stdout}\n{stderr}",
             out.status
         ));
     }
@@ -111,6 +106,17 @@ fn run_window(shot: &Path) -> Result<(), String> {
 
 #[test]
 fn demo_window_shows_views_and_avatar() {
+    window_shows_views_and_avatar("demo", &["demo-ui"]);
+}
+
+/// The README's demo: the bundled recording replayed through the real station on screen.
+#[test]
+fn replay_window_shows_views_and_avatar() {
+    let rec = concat!(env!("CARGO_MANIFEST_DIR"), "/recordings/demo");
+    window_shows_views_and_avatar("replay", &["replay", rec, "--ui"]);
+}
+
+fn window_shows_views_and_avatar(name: &str, command: &[&str]) {
     if !have("xvfb-run") {
         if std::env::var_os("CI").is_some() {
             panic!("xvfb-run is missing under CI: apt-get install -y xvfb mesa-vulkan-drivers libvulkan1");
@@ -120,10 +126,10 @@ fn demo_window_shows_views_and_avatar() {
         return;
     }
     let dir: PathBuf =
-        std::env::temp_dir().join(format!("fitstation-ui-xvfb-{}", std::process::id()));
+        std::env::temp_dir().join(format!("fitstation-ui-xvfb-{name}-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
-    let shot = dir.join("demo.png");
-    if let Err(e) = run_window(&shot) {
+    let shot = dir.join(format!("{name}.png"));
+    if let Err(e) = run_window(&shot, command) {
         panic!("{e}");
     }
     let img = image::open(&shot)

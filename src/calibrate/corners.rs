@@ -412,7 +412,7 @@ impl CornerDetector {
                 by1 = by1.max(y);
                 fg = fg.min(self.gray[i] as f64);
                 touches_border |= x == 0 || y == 0 || x + 1 == w || y + 1 == h;
-                let mut visit = |j: usize, s: &mut Self| {
+                let visit = |j: usize, s: &mut Self| {
                     if s.labels[j] == 0 && dark(s, j % w, j / w) {
                         s.labels[j] = label;
                         s.stack.push(j);

@@ -88,6 +88,10 @@ pub struct ReplayArgs {
 pub struct RecordingSource {
     rec: Recording,
     next: usize,
+    /// Pairs given so far (indices and timestamps keep rising when looping).
+    given: u64,
+    /// Start again at the first frame after the last (the station screen's replay).
+    pub looping: bool,
     name: String,
 }
 
@@ -98,6 +102,8 @@ impl RecordingSource {
         Ok(RecordingSource {
             rec,
             next: 0,
+            given: 0,
+            looping: false,
             name: format!("recording {}", dir.display()),
         })
     }
@@ -109,15 +115,20 @@ impl RecordingSource {
 impl FrameSource for RecordingSource {
     fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
         if self.next >= self.rec.len() {
-            return Ok(None);
+            if !self.looping || self.rec.is_empty() {
+                return Ok(None);
+            }
+            self.next = 0;
         }
         let k = self.next;
         self.next += 1;
+        let index = self.given;
+        self.given += 1;
         let fps = self.rec.metadata().fps.max(1e-3);
         match self.rec.frame_pair(k) {
             Ok((front, side)) => Ok(Some(FramePair {
-                index: k as u64,
-                timestamp_s: k as f64 / fps,
+                index,
+                timestamp_s: index as f64 / fps,
                 front,
                 side,
             })),
@@ -268,8 +279,25 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
     if opts.stature_m.is_none() {
         opts.stature_m = source.recording().metadata().stature_m;
     }
+    let backdrop_frames = opts.backdrop_frames;
     let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
     if args.ui {
+        // On screen the recording plays in a loop at its own frame rate; frames the
+        // station cannot keep up with are dropped, as with live cameras.
+        // The backdrop is learned from the recording's first (empty) frames before the
+        // screen starts: on screen, frames the station cannot keep up with are dropped,
+        // and a learning phase that skipped into the subject frames would learn the
+        // subject as backdrop.
+        for _ in 0..backdrop_frames {
+            match source.next_pair() {
+                Ok(Some(pair)) => {
+                    proc_.process(&pair);
+                }
+                Ok(None) => break,
+                Err(e) => eprintln!("warning: {e}"),
+            }
+        }
+        source.looping = true;
         let app_opts = crate::app::AppOptions {
             title: format!("fitstation: replay {}", args.recording.display()),
             screenshot: args.screenshot.clone(),

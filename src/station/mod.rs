@@ -306,6 +306,9 @@ impl FrameProcessor for StationProcessor {
         let total: f64 = timer.stages().iter().map(|(_, ms)| ms).sum();
         s.timings_ms = timer.into_stages();
         s.timings_ms.push(("total".into(), total));
+        // The screen shows the frames the overlays belong to (kept in memory only).
+        s.front_frame = Some(Arc::new(pair.front.clone()));
+        s.side_frame = Some(Arc::new(pair.side.clone()));
         s
     }
 
