@@ -432,14 +432,27 @@ pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
             ]
         }
         (None, None) => {
-            opts.backdrop_frames = 0;
-            opts.still_keying = true;
-            vec![FramePair {
-                index: 0,
-                timestamp_s: 0.0,
-                front,
-                side,
-            }]
+            // The paper's case: a plain backdrop, keyed out from the frame's own border.
+            opts.backdrop_frames = 1;
+            opts.silhouette.segment.adapt_rate = 0.0;
+            let (fb, sb) = (
+                crate::segment::backdrop_from_border(&front),
+                crate::segment::backdrop_from_border(&side),
+            );
+            vec![
+                FramePair {
+                    index: 0,
+                    timestamp_s: 0.0,
+                    front: fb,
+                    side: sb,
+                },
+                FramePair {
+                    index: 1,
+                    timestamp_s: 0.0,
+                    front,
+                    side,
+                },
+            ]
         }
         _ => bail!("give both --front-bg and --side-bg, or neither"),
     };

@@ -49,8 +49,6 @@ pub struct StationOptions {
     pub silhouette: SilhouetteOptions,
     /// Stability (mm, spread of the recent window) under which a girth counts as settled.
     pub settled_mm: f64,
-    /// Stills without an empty scene: key the plain backdrop out of each frame.
-    pub still_keying: bool,
 }
 
 impl Default for StationOptions {
@@ -61,7 +59,6 @@ impl Default for StationOptions {
             fit: FitOptions::default(),
             silhouette: SilhouetteOptions::default(),
             settled_mm: 2.0,
-            still_keying: false,
         }
     }
 }
