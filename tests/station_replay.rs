@@ -184,3 +184,48 @@ fn bad_inputs_give_clear_errors() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("cut.png"));
     assert!(!dir.join("o3").exists() && !dir.join("o4").exists());
 }
+
+#[test]
+fn fit_on_stills_with_empty_scene_writes_outputs() {
+    let dir = tmp("stills");
+    let rec = synth(&dir, 9, 2);
+    let p = |v: &str, k: usize| {
+        rec.join(v)
+            .join(format!("{k:06}.png"))
+            .to_string_lossy()
+            .into_owned()
+    };
+    let out = dir.join("out");
+    let calib = rec.join("station.yaml");
+    let o = fitstation(&[
+        "fit",
+        "--front",
+        &p("front", 10),
+        "--side",
+        &p("side", 10),
+        "--front-bg",
+        &p("front", 0),
+        "--side-bg",
+        &p("side", 0),
+        "--calib",
+        calib.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        o.status.success(),
+        "fit failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["frames"]["fitted"], 1);
+    let truth = load_truth(&truth_dir(&rec)).unwrap();
+    let stature = report["measurements_mm"]["stature"].as_f64().unwrap();
+    assert!(
+        (stature - truth.measurements_mm["stature"]).abs() < 20.0,
+        "stature {stature}"
+    );
+    assert!(out.join("avatar.obj").exists());
+}
