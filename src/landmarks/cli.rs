@@ -42,7 +42,8 @@ pub struct LandmarksArgs {
     pub overlay: Option<PathBuf>,
 }
 
-fn load_rgb(path: &Path) -> anyhow::Result<RgbImage> {
+/// Reads an image file as RGB, naming the file in the error.
+pub fn load_rgb(path: &Path) -> anyhow::Result<RgbImage> {
     Ok(image::open(path)
         .with_context(|| format!("cannot read image {}", path.display()))?
         .to_rgb8())

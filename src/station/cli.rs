@@ -398,11 +398,7 @@ pub struct FitArgs {
     pub fit: FitCliOptions,
 }
 
-fn load_rgb(path: &Path) -> anyhow::Result<image::RgbImage> {
-    Ok(image::open(path)
-        .with_context(|| format!("cannot read image {}", path.display()))?
-        .to_rgb8())
-}
+use crate::landmarks::cli::load_rgb;
 
 /// `fitstation fit` on two stills (with optional empty-scene images).
 pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {

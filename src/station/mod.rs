@@ -84,6 +84,8 @@ pub struct StationProcessor {
     pub last_measurements: Option<Measurements>,
     pub last_fit: Option<FitStats>,
     pub last_landmarks: Vec<(String, DVec3)>,
+    /// Reused silhouette buffers (masks, contours) of the per-frame path.
+    silhouette_result: SilhouetteResult,
 }
 
 impl StationProcessor {
@@ -105,6 +107,7 @@ impl StationProcessor {
             last_measurements: None,
             last_fit: None,
             last_landmarks: Vec::new(),
+            silhouette_result: SilhouetteResult::empty(),
         })
     }
 
@@ -170,18 +173,34 @@ impl StationProcessor {
             );
             return s;
         }
-        let result = match self.silhouettes.process(&pair.front, &pair.side) {
-            Ok(r) => r,
-            Err(e) => {
-                let mut s = self.snapshot(pair.index, Phase::Guiding, None);
-                s.messages.push(format!("frame skipped: {e}"));
-                return s;
-            }
-        };
+        // The silhouette result is reused frame after frame (its masks and contours keep
+        // their buffers): taken out of `self` for the frame, put back after.
+        let mut result = std::mem::replace(&mut self.silhouette_result, SilhouetteResult::empty());
+        if let Err(e) = self
+            .silhouettes
+            .process_into(&pair.front, &pair.side, &mut result)
+        {
+            self.silhouette_result = result;
+            let mut s = self.snapshot(pair.index, Phase::Guiding, None);
+            s.messages.push(format!("frame skipped: {e}"));
+            return s;
+        }
         timer.lap("silhouettes");
+        let s = self.fit_and_measure(pair, timer, &result);
+        self.silhouette_result = result;
+        s
+    }
+
+    /// The part of a frame after the silhouettes: verdicts, fit, measurements.
+    fn fit_and_measure(
+        &mut self,
+        pair: &FramePair,
+        timer: &mut FrameTimer,
+        result: &SilhouetteResult,
+    ) -> FitSnapshot {
         let verdicts = &result.landmarks.verdicts;
         if verdicts.iter().any(|v| matches!(v, Verdict::NoPerson)) {
-            let mut s = self.snapshot(pair.index, Phase::WaitingForSubject, Some(&result));
+            let mut s = self.snapshot(pair.index, Phase::WaitingForSubject, Some(result));
             s.messages.push(Verdict::NoPerson.message());
             return s;
         }
@@ -192,12 +211,12 @@ impl StationProcessor {
             .map(|v| v.message())
             .collect();
         if !blocking.is_empty() {
-            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(&result));
+            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
             s.messages.extend(blocking);
             return s;
         }
-        let Some(obs) = observation(&result, self.opts.stature_m) else {
-            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(&result));
+        let Some(obs) = observation(result, self.opts.stature_m) else {
+            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
             s.messages
                 .push("The landmarks could not be found in this frame.".into());
             return s;
@@ -225,7 +244,7 @@ impl StationProcessor {
         let (positions, stats) = match fit {
             Ok(x) => x,
             Err(e) => {
-                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(&result));
+                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
                 s.messages.push(format!("fit skipped: {e}"));
                 return s;
             }
@@ -245,7 +264,7 @@ impl StationProcessor {
             }
             Err(e) => {
                 timer.lap("measure");
-                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(&result));
+                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
                 s.messages.push(format!("measurement skipped: {e}"));
                 return s;
             }
@@ -264,7 +283,7 @@ impl StationProcessor {
         } else {
             Phase::Fitting
         };
-        let mut s = self.snapshot(pair.index, phase, Some(&result));
+        let mut s = self.snapshot(pair.index, phase, Some(result));
         s.messages.extend(
             verdicts
                 .iter()
