@@ -99,8 +99,13 @@ impl OrbitCamera {
 
 /// Base colour of the avatar (linear RGB); the screenshot test looks for its hue.
 pub const AVATAR_RGB: [f32; 3] = [0.20, 0.55, 0.85];
-/// Background of the avatar view (sRGB 0..1).
-pub const AVATAR_BACKGROUND: [f64; 3] = [0.10, 0.11, 0.13];
+/// Background of the avatar view (sRGB 0..1): the window's clear colour, so that only
+/// the part of the view around the body needs to be drawn each frame.
+pub const AVATAR_BACKGROUND: [f64; 3] = [
+    super::SCREEN_BACKGROUND_RGB[0] as f64 / 255.0,
+    super::SCREEN_BACKGROUND_RGB[1] as f64 / 255.0,
+    super::SCREEN_BACKGROUND_RGB[2] as f64 / 255.0,
+];
 
 const SHADER: &str = r#"
 struct Uniforms {
@@ -158,7 +163,10 @@ fn vs_blit(@builtin(vertex_index) k: u32) -> BlitOut {
 
 @fragment
 fn fs_blit(i: BlitOut) -> @location(0) vec4<f32> {
-    return textureSample(tex, samp, i.uv);
+    // The picture has the view's size: one texel per pixel, no filtering needed.
+    let d = vec2<i32>(textureDimensions(tex));
+    let p = clamp(vec2<i32>(i.uv * vec2<f32>(d)), vec2<i32>(0, 0), d - vec2<i32>(1, 1));
+    return textureLoad(tex, p, 0);
 }
 "#;
 
@@ -493,6 +501,37 @@ pub struct AvatarCallback {
     pub camera: OrbitCamera,
     /// Size of the view in points.
     pub size_points: [f32; 2],
+    /// Where the body can appear in the view, normalised device coordinates
+    /// (x0, y0, x1, y1; +y up), from [`ndc_bounds`]; only that part is drawn each frame
+    /// (the rest is the window's clear colour). `None`: the whole view.
+    pub body_ndc: Option<[f32; 4]>,
+}
+
+/// Pixels added around the body's projected box before drawing it.
+const BODY_BOX_MARGIN_PX: f32 = 3.0;
+
+/// The projected box of `mesh`'s bounding box seen by `camera` at `aspect`, normalised
+/// device coordinates (x0, y0, x1, y1), clamped to the view; `None` when a corner is
+/// behind the camera (then the whole view is drawn).
+pub fn ndc_bounds(mesh: &TriMesh, camera: &OrbitCamera, aspect: f32) -> Option<[f32; 4]> {
+    let b = mesh.bounds()?;
+    let vp = camera.view_proj(aspect);
+    let mut out = [f32::MAX, f32::MAX, f32::MIN, f32::MIN];
+    for k in 0..8 {
+        let c = glam::DVec3::new(
+            if k & 1 == 0 { b.min.x } else { b.max.x },
+            if k & 2 == 0 { b.min.y } else { b.max.y },
+            if k & 4 == 0 { b.min.z } else { b.max.z },
+        );
+        let p = vp * Vec3::new(c.x as f32, c.y as f32, c.z as f32).extend(1.0);
+        if p.w <= NEAR_M * 0.5 {
+            return None;
+        }
+        let (x, y) = (p.x / p.w, p.y / p.w);
+        out = [out[0].min(x), out[1].min(y), out[2].max(x), out[3].max(y)];
+    }
+    let c = |v: f32| v.clamp(-1.0, 1.0);
+    Some([c(out[0]), c(out[1]), c(out[2]), c(out[3])])
 }
 
 impl egui_wgpu::CallbackTrait for AvatarCallback {
@@ -584,7 +623,7 @@ impl egui_wgpu::CallbackTrait for AvatarCallback {
 
     fn paint(
         &self,
-        _info: egui::PaintCallbackInfo,
+        info: egui::PaintCallbackInfo,
         render_pass: &mut wgpu::RenderPass<'static>,
         resources: &egui_wgpu::CallbackResources,
     ) {
@@ -594,6 +633,33 @@ impl egui_wgpu::CallbackTrait for AvatarCallback {
         let Some(target) = res.target.as_ref() else {
             return;
         };
+        // Nothing to show: the window's clear colour is the view's background.
+        if self.mesh.is_none() {
+            return;
+        }
+        if let Some([x0, y0, x1, y1]) = self.body_ndc {
+            let vp = info.viewport_in_pixels();
+            let clip = info.clip_rect_in_pixels();
+            let to_px_x = |x: f32| vp.left_px as f32 + (x + 1.0) * 0.5 * vp.width_px as f32;
+            let to_px_y = |y: f32| vp.top_px as f32 + (1.0 - y) * 0.5 * vp.height_px as f32;
+            let left = (to_px_x(x0) - BODY_BOX_MARGIN_PX).max(clip.left_px as f32);
+            let right =
+                (to_px_x(x1) + BODY_BOX_MARGIN_PX).min((clip.left_px + clip.width_px) as f32);
+            let top = (to_px_y(y1) - BODY_BOX_MARGIN_PX).max(clip.top_px as f32);
+            let bottom =
+                (to_px_y(y0) + BODY_BOX_MARGIN_PX).min((clip.top_px + clip.height_px) as f32);
+            if right <= left || bottom <= top {
+                return;
+            }
+            let (l, t) = (left.floor().max(0.0) as u32, top.floor().max(0.0) as u32);
+            let (r, b) = (right.ceil() as u32, bottom.ceil() as u32);
+            let [sw, sh] = info.screen_size_px;
+            let (r, b) = (r.min(sw), b.min(sh));
+            if r <= l || b <= t {
+                return;
+            }
+            render_pass.set_scissor_rect(l, t, r - l, b - t);
+        }
         render_pass.set_pipeline(&res.blit_pipeline);
         render_pass.set_bind_group(0, &target.blit_bind_group, &[]);
         render_pass.draw(0..3, 0..1);

@@ -33,6 +33,10 @@ use std::sync::atomic::Ordering;
 use std::sync::{Arc, Mutex};
 use std::time::Instant;
 
+/// The window's background (sRGB), drawn by the clear at no cost: panels have no fill
+/// of their own (on a software renderer every filled pixel costs, every frame).
+pub const SCREEN_BACKGROUND_RGB: [u8; 3] = [22, 23, 27];
+
 /// Longest side of a camera frame as uploaded for display (pixels).
 pub const DISPLAY_MAX_PX: u32 = 640;
 /// A measurement whose recent spread is below this is shown as settled (mm).
@@ -155,6 +159,9 @@ pub struct RunSummary {
     /// CPU time of the whole process (all threads: source, processor, screen, the
     /// software renderer), seconds, where the OS tells it.
     pub cpu_seconds: Option<f64>,
+    /// CPU seconds per thread group (`capture`, `process`, the screen's main thread,
+    /// `llvmpipe` for Mesa's software rasteriser...), live threads only.
+    pub thread_cpu: Vec<(String, f64)>,
 }
 
 /// User + system CPU seconds of this process from `/proc/self/stat` (Linux).
@@ -203,6 +210,14 @@ impl std::fmt::Display for RunSummary {
                 }
             )?;
         }
+        if !self.thread_cpu.is_empty() && self.ui_frames > 0 {
+            let per: Vec<String> = self
+                .thread_cpu
+                .iter()
+                .map(|(n, c)| format!("{n} {:.1}", 1e3 * c / self.ui_frames as f64))
+                .collect();
+            writeln!(f, "cpu ms per screen frame by thread: {}", per.join(", "))?;
+        }
         for (s, med, p95) in &self.ui_timings {
             writeln!(f, "stage {s}: median {med:.2} ms, p95 {p95:.2} ms")?;
         }
@@ -211,6 +226,43 @@ impl std::fmt::Display for RunSummary {
         }
         Ok(())
     }
+}
+
+/// CPU seconds of this process's live threads grouped by name, numbered workers
+/// together ("llvmpipe-0", "llvmpipe-1" -> "llvmpipe"), from `/proc/self/task` (Linux;
+/// empty elsewhere). Sorted by CPU time, largest first.
+pub fn thread_cpu_seconds() -> Vec<(String, f64)> {
+    const USER_HZ: f64 = 100.0;
+    let mut groups: Vec<(String, f64)> = Vec::new();
+    let Ok(dir) = std::fs::read_dir("/proc/self/task") else {
+        return groups;
+    };
+    for entry in dir.flatten() {
+        let Ok(stat) = std::fs::read_to_string(entry.path().join("stat")) else {
+            continue;
+        };
+        let (Some(open), Some(close)) = (stat.find('('), stat.rfind(')')) else {
+            continue;
+        };
+        let name = stat.get(open + 1..close).unwrap_or("?");
+        let group = name
+            .trim_end_matches(|c: char| c.is_ascii_digit())
+            .trim_end_matches(['-', ':', ' '])
+            .to_string();
+        let f: Vec<&str> = stat
+            .get(close + 2..)
+            .unwrap_or("")
+            .split_whitespace()
+            .collect();
+        let ticks = |k: usize| f.get(k).and_then(|v| v.parse::<f64>().ok()).unwrap_or(0.0);
+        let secs = (ticks(11) + ticks(12)) / USER_HZ;
+        match groups.iter_mut().find(|(g, _)| *g == group) {
+            Some((_, s)) => *s += secs,
+            None => groups.push((group, secs)),
+        }
+    }
+    groups.sort_by(|a, b| b.1.total_cmp(&a.1));
+    groups
 }
 
 /// Rates over the last second from event times.
@@ -268,7 +320,9 @@ struct StationApp {
     mode: Mode,
     front_tex: Option<ViewTexture>,
     side_tex: Option<ViewTexture>,
-    downscale_scratch: Vec<Color32>,
+    downscale_scratch: DownscaleScratch,
+    /// Size of each camera view on screen at the last frame (pixels).
+    view_px: Option<[f32; 2]>,
     avatar_generation: u64,
     avatar_ptr: *const crate::mesh::TriMesh,
     orbit: OrbitCamera,
@@ -295,6 +349,8 @@ struct StationApp {
     operator_log: VecDeque<String>,
     summary: Arc<Mutex<RunSummary>>,
     closing: bool,
+    /// Arrival time of the pair behind the snapshot taken this frame (latency figure).
+    pending_arrival: Option<Instant>,
 }
 
 /// Frames an automatic screenshot waits beyond its frame for a fitted avatar.
@@ -331,7 +387,8 @@ impl StationApp {
             },
             front_tex: None,
             side_tex: None,
-            downscale_scratch: Vec::new(),
+            downscale_scratch: DownscaleScratch::default(),
+            view_px: None,
             avatar_generation: 0,
             avatar_ptr: std::ptr::null(),
             orbit: OrbitCamera::default(),
@@ -359,6 +416,7 @@ impl StationApp {
             operator_log: VecDeque::new(),
             summary,
             closing: false,
+            pending_arrival: None,
         })
     }
 
@@ -380,6 +438,7 @@ impl StationApp {
             self.snapshots_shown += 1;
             self.snap_meter.tick(now);
             self.pipeline_stats.add_all(&snap.timings_ms);
+            self.pending_arrival = self.runner.controls.arrival(snap.frame_index);
             let was_learning = matches!(self.flow.state(), FlowState::LearningBackdrop);
             let action = self.flow.on_snapshot(&FlowInput::from_snapshot(&snap), now);
             if was_learning && !matches!(self.flow.state(), FlowState::LearningBackdrop) {
@@ -394,6 +453,7 @@ impl StationApp {
                     &mut self.front_tex,
                     "front",
                     f,
+                    self.view_px,
                     &mut self.downscale_scratch,
                 );
             }
@@ -403,6 +463,7 @@ impl StationApp {
                     &mut self.side_tex,
                     "side",
                     f,
+                    self.view_px,
                     &mut self.downscale_scratch,
                 );
             }
@@ -830,6 +891,7 @@ impl StationApp {
             s.recent_snapshot_fps = self.snap_meter.rate(now);
             s.recent_ui_fps = self.ui_meter.rate(now);
             s.cpu_seconds = process_cpu_seconds();
+            s.thread_cpu = thread_cpu_seconds();
             let mut all = self.runner.controls.thread_stats().summary();
             all.extend(
                 self.ui_stats
@@ -854,6 +916,8 @@ impl StationApp {
             })
             .collect();
         let painter = ui.painter_at(avail);
+        let ppp = ui.ctx().pixels_per_point();
+        self.view_px = Some([w * ppp, avail.height() * ppp]);
         let show_all = self.mode == Mode::Operator;
         let snap = self.current.as_ref();
         self.layout.front = draw_view(
@@ -911,6 +975,10 @@ impl StationApp {
             }
         }
         let has_mesh = mesh.is_some();
+        let aspect = avatar_rect.width() / avatar_rect.height().max(1.0);
+        let body_ndc = mesh
+            .as_deref()
+            .and_then(|m| avatar3d::ndc_bounds(m, &self.orbit, aspect));
         painter.add(eframe::egui_wgpu::Callback::new_paint_callback(
             avatar_rect,
             AvatarCallback {
@@ -918,6 +986,7 @@ impl StationApp {
                 generation: self.avatar_generation,
                 camera: self.orbit,
                 size_points: [avatar_rect.width(), avatar_rect.height()],
+                body_ndc,
             },
         ));
         self.layout.avatar = Some(avatar_rect);
@@ -964,13 +1033,21 @@ impl eframe::App for StationApp {
         self.ui_meter.tick(now);
         self.poll_snapshot(&ctx);
 
-        egui::Panel::top("top").show(ui, |ui| self.top_bar(ui));
-        egui::Panel::bottom("kiosk").show(ui, |ui| self.kiosk_banner(ui));
+        // Panels without fills: the clear colour is their background.
+        let bare = || egui::Frame::NONE.inner_margin(PANEL_MARGIN);
+        egui::Panel::top("top")
+            .frame(bare())
+            .show(ui, |ui| self.top_bar(ui));
+        egui::Panel::bottom("kiosk")
+            .frame(bare())
+            .show(ui, |ui| self.kiosk_banner(ui));
         egui::Panel::right("measurements")
+            .frame(bare())
             .default_size(320.0)
             .show(ui, |ui| self.measurements_panel(ui));
         if self.mode == Mode::Operator {
             egui::Panel::left("operator")
+                .frame(bare())
                 .default_size(340.0)
                 .show(ui, |ui| self.operator_panel(ui));
         }
@@ -979,6 +1056,10 @@ impl eframe::App for StationApp {
         egui::CentralPanel::no_frame().show(ui, |ui| self.views(ui));
 
         self.ui_stats.add("frame", t0.elapsed().as_secs_f64() * 1e3);
+        if let Some(t) = self.pending_arrival.take() {
+            self.ui_stats
+                .add("arrival to screen", t.elapsed().as_secs_f64() * 1e3);
+        }
         // Screenshot and exit handling (CLI --screenshot / --exit-after-frames): the
         // automatic screenshot is due after N frames and waits (at most
         // SCREENSHOT_GRACE_FRAMES more) for a frame that shows a fitted avatar.
@@ -1014,8 +1095,19 @@ impl eframe::App for StationApp {
         if self.closing {
             self.write_summary();
         }
-        // Keep the countdown and timeouts moving without snapshots.
-        ctx.request_repaint_after(std::time::Duration::from_millis(100));
+        // Keep the countdown, the timeouts and the recording light moving without
+        // snapshots; otherwise the screen repaints only when something new arrives.
+        let wake_ms = if matches!(self.flow.state(), FlowState::HoldStill { .. }) {
+            COUNTDOWN_REPAINT_MS
+        } else {
+            IDLE_REPAINT_MS
+        };
+        ctx.request_repaint_after(std::time::Duration::from_millis(wake_ms));
+    }
+
+    fn clear_color(&self, _visuals: &egui::Visuals) -> [f32; 4] {
+        let [r, g, b] = SCREEN_BACKGROUND_RGB;
+        Color32::from_rgb(r, g, b).to_normalized_gamma_f32()
     }
 
     fn on_exit(&mut self) {
@@ -1044,19 +1136,22 @@ fn stability_indicator(ui: &mut egui::Ui, spread_mm: f64) {
     });
 }
 
-/// Uploads `frame` into `slot` unless it is the frame already shown.
+/// Uploads `frame` into `slot` unless it is the frame already shown, box-filtered down
+/// to about `target_px` (the view's size on screen in pixels, when known).
 fn upload(
     ctx: &egui::Context,
     slot: &mut Option<ViewTexture>,
     name: &str,
     frame: &Arc<image::RgbImage>,
-    scratch: &mut Vec<Color32>,
+    target_px: Option<[f32; 2]>,
+    scratch: &mut DownscaleScratch,
 ) {
     let ptr = Arc::as_ptr(frame);
     if slot.as_ref().is_some_and(|t| t.source == ptr) {
         return;
     }
-    let img = downscale_for_display(frame, scratch);
+    let factor = display_factor(frame.width(), frame.height(), target_px);
+    let img = downscale_by(frame, factor, scratch);
     let frame_size = [frame.width(), frame.height()];
     match slot {
         Some(t) => {
@@ -1075,42 +1170,79 @@ fn upload(
     }
 }
 
-/// Box-filters a frame down by an integer factor so its longer side is at most
+/// Reusable buffers of [`downscale_by`].
+#[derive(Debug, Default)]
+pub struct DownscaleScratch {
+    row_sums: Vec<u32>,
+    pixels: Vec<Color32>,
+}
+
+/// Integer box-filter factor for showing a `w` x `h` frame in a view of `target_px`
+/// pixels: the largest factor that keeps the texture at least as large as the view
+/// (sampling stays sharp), and at least the one that brings the longer side down to
 /// [`DISPLAY_MAX_PX`].
-pub fn downscale_for_display(
+pub fn display_factor(w: u32, h: u32, target_px: Option<[f32; 2]>) -> u32 {
+    let cap = w.max(h).div_ceil(DISPLAY_MAX_PX).max(1);
+    let Some([tw, th]) = target_px.filter(|t| t[0] >= 1.0 && t[1] >= 1.0) else {
+        return cap;
+    };
+    let fit = (w as f32 / tw).max(h as f32 / th).floor().max(1.0) as u32;
+    fit.max(cap)
+}
+
+/// Box-filters a frame down by an integer factor (partial blocks at the right and bottom
+/// edges are left out, at most `factor - 1` pixels).
+pub fn downscale_by(
     frame: &image::RgbImage,
-    scratch: &mut Vec<Color32>,
+    factor: u32,
+    scratch: &mut DownscaleScratch,
 ) -> egui::ColorImage {
+    let f = factor.max(1) as usize;
     let (w, h) = (frame.width() as usize, frame.height() as usize);
-    let f = (w.max(h) as u32).div_ceil(DISPLAY_MAX_PX).max(1) as usize;
     let (ow, oh) = ((w / f).max(1), (h / f).max(1));
-    scratch.clear();
-    scratch.reserve(ow * oh);
+    // A frame smaller than one block: shown as is.
+    let f = f.min(w).min(h).max(1);
     let raw = frame.as_raw();
     let n = (f * f) as u32;
+    scratch.pixels.clear();
+    scratch.pixels.reserve(ow * oh);
+    scratch.row_sums.clear();
+    scratch.row_sums.resize(ow * 3, 0);
     for oy in 0..oh {
-        for ox in 0..ow {
-            let mut acc = [0u32; 3];
-            for dy in 0..f {
-                let y = (oy * f + dy).min(h - 1);
-                let row = y * w * 3;
-                for dx in 0..f {
-                    let x = (ox * f + dx).min(w - 1);
-                    let i = row + x * 3;
-                    acc[0] += raw[i] as u32;
-                    acc[1] += raw[i + 1] as u32;
-                    acc[2] += raw[i + 2] as u32;
+        scratch.row_sums.fill(0);
+        for dy in 0..f {
+            let y = oy * f + dy;
+            let Some(row) = raw.get(y * w * 3..(y * w + ow * f) * 3) else {
+                break;
+            };
+            for (acc, block) in scratch
+                .row_sums
+                .chunks_exact_mut(3)
+                .zip(row.chunks_exact(3 * f))
+            {
+                for px in block.chunks_exact(3) {
+                    acc[0] += px[0] as u32;
+                    acc[1] += px[1] as u32;
+                    acc[2] += px[2] as u32;
                 }
             }
-            scratch.push(Color32::from_rgb(
-                (acc[0] / n) as u8,
-                (acc[1] / n) as u8,
-                (acc[2] / n) as u8,
-            ));
         }
+        scratch.pixels.extend(
+            scratch
+                .row_sums
+                .chunks_exact(3)
+                .map(|a| Color32::from_rgb((a[0] / n) as u8, (a[1] / n) as u8, (a[2] / n) as u8)),
+        );
     }
-    egui::ColorImage::new([ow, oh], std::mem::take(scratch))
+    egui::ColorImage::new([ow, oh], std::mem::take(&mut scratch.pixels))
 }
+
+/// Repaint period while the hold-still countdown runs, and otherwise without new
+/// snapshots (timeouts, the recording light), milliseconds.
+const COUNTDOWN_REPAINT_MS: u64 = 100;
+const IDLE_REPAINT_MS: u64 = 500;
+/// Inner margin of the panels (points).
+const PANEL_MARGIN: f32 = 6.0;
 
 /// Margin around the views (points).
 const VIEW_MARGIN: f32 = 6.0;
@@ -1140,7 +1272,13 @@ fn draw_view(
     operator: bool,
 ) -> Option<Rect> {
     let Some(tex) = tex else {
-        painter.rect_filled(area, 4.0, Color32::from_gray(24));
+        // No fill: on a software renderer every covered pixel costs each frame.
+        painter.rect_stroke(
+            area,
+            4.0,
+            Stroke::new(1.0, Color32::from_gray(60)),
+            egui::StrokeKind::Inside,
+        );
         painter.text(
             area.center(),
             egui::Align2::CENTER_CENTER,
@@ -1405,13 +1543,25 @@ mod tests {
                 image::Rgb([0, 0, 100])
             };
         }
-        let mut scratch = Vec::new();
-        let out = downscale_for_display(&img, &mut scratch);
+        let mut scratch = DownscaleScratch::default();
+        let f = display_factor(1280, 720, None);
+        assert_eq!(f, 2);
+        let out = downscale_by(&img, f, &mut scratch);
         assert_eq!(out.size, [640, 360]);
         let c = out.pixels[1000];
         assert_eq!((c.r(), c.g(), c.b()), (100, 0, 50));
         let small = image::RgbImage::new(100, 50);
-        assert_eq!(downscale_for_display(&small, &mut scratch).size, [100, 50]);
+        let f = display_factor(100, 50, None);
+        assert_eq!(downscale_by(&small, f, &mut scratch).size, [100, 50]);
+        // A view of 420 px: the texture stays at least that wide.
+        let f = display_factor(1280, 720, Some([420.0, 800.0]));
+        assert_eq!(f, 3);
+        let out = downscale_by(&img, f, &mut scratch);
+        assert_eq!(out.size, [426, 240]);
+        assert!(out.size[0] as f32 >= 420.0);
+        // Odd factor over alternating columns: 2 red + 1 blue or 1 red + 2 blue.
+        let c = out.pixels[0];
+        assert_eq!((c.r(), c.g(), c.b()), (133, 0, 33));
     }
 
     #[test]

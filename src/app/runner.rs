@@ -49,7 +49,13 @@ pub struct Controls {
     pub status: Mutex<SourceStatus>,
     /// Durations of `source` (reading one pair) and `process` (one snapshot), ms.
     pub stats: Mutex<TimingStats>,
+    /// When the most recent pairs left the source (index, time), for the screen's
+    /// arrival-to-screen latency.
+    arrivals: Mutex<std::collections::VecDeque<(u64, Instant)>>,
 }
+
+/// Arrival times kept for the latency figure (pairs).
+const ARRIVALS_KEPT: usize = 64;
 
 impl Controls {
     pub fn status(&self) -> SourceStatus {
@@ -62,6 +68,19 @@ impl Controls {
     fn add_stat(&self, stage: &str, since: Instant) {
         if let Ok(mut s) = self.stats.lock() {
             s.add(stage, since.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    /// When the pair `index` left the source, if it is among the recent ones.
+    pub fn arrival(&self, index: u64) -> Option<Instant> {
+        let a = self.arrivals.lock().ok()?;
+        a.iter().rev().find(|(i, _)| *i == index).map(|(_, t)| *t)
+    }
+    fn note_arrival(&self, index: u64) {
+        if let Ok(mut a) = self.arrivals.lock() {
+            a.push_back((index, Instant::now()));
+            while a.len() > ARRIVALS_KEPT {
+                a.pop_front();
+            }
         }
     }
     fn with_status(&self, f: impl FnOnce(&mut SourceStatus)) {
@@ -118,6 +137,7 @@ impl Runner {
                         match source.next_pair() {
                             Ok(Some(pair)) => {
                                 controls.add_stat("source", t0);
+                                controls.note_arrival(pair.index);
                                 if let Ok(r) = controls.recorder.lock() {
                                     if let Some(r) = r.as_ref() {
                                         r.push(&pair);

@@ -306,7 +306,7 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
             ..crate::app::AppOptions::default()
         };
         let summary = crate::app::run(Box::new(source), Box::new(proc_), app_opts)?;
-        eprintln!("{summary:?}");
+        eprint!("{summary}");
         return Ok(());
     }
     let summary = run_offline(&mut source, &mut proc_, args.max_frames, !args.fit.json);
