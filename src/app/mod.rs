@@ -12,20 +12,25 @@
 //! the avatar is in the station frame (metres).
 
 pub mod avatar3d;
+pub mod calib_wizard;
 pub mod demo;
 pub mod export;
 pub mod flow;
+pub mod live;
 pub mod operator;
 pub mod record;
 pub mod runner;
+pub mod session;
+
+pub use live::{run_live_cli, LiveArgs};
 
 use crate::camera::StationCalibration;
 use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FrameProcessor, FrameSource, MeasurementValue, ViewOverlay};
 use avatar3d::{AvatarCallback, AvatarResources, OrbitCamera, ViewPreset};
+use calib_wizard::{CalibrationWizard, WizardAction, WizardSettings, WizardStep, WizardView};
 use egui::{Color32, Pos2, Rect, RichText, Stroke, TextureHandle, Vec2};
 use flow::{FlowAction, FlowConfig, FlowInput, FlowState, KioskFlow};
-use operator::{BoardDetections, CalibrationWizard, NoCalibrationWizard};
 use runner::Runner;
 use std::collections::VecDeque;
 use std::path::{Path, PathBuf};
@@ -54,8 +59,12 @@ pub struct AppOptions {
     /// Close the window after this many frames (after the screenshot, if any).
     pub exit_after_frames: Option<u64>,
     pub flow: FlowConfig,
-    /// The calibration module's hook (a placeholder when `None`).
-    pub calibration_wizard: Option<Box<dyn CalibrationWizard>>,
+    /// Board, target and output path of the operator's calibration wizard.
+    pub wizard: WizardSettings,
+    /// Builds the station processor for a calibration: used when the operator puts a
+    /// newly solved calibration to use, or asks to learn the backdrop again. `None`:
+    /// the processor given to [`run`] stays.
+    pub processor_factory: Option<ProcessorFactory>,
     /// Called once when the backdrop has been learnt (live cameras lock exposure and
     /// white balance then).
     pub on_backdrop_learned: Option<Box<dyn FnMut() + Send>>,
@@ -74,7 +83,8 @@ impl Default for AppOptions {
             screenshot: None,
             exit_after_frames: None,
             flow: FlowConfig::default(),
-            calibration_wizard: None,
+            wizard: WizardSettings::default(),
+            processor_factory: None,
             on_backdrop_learned: None,
             record_dir: PathBuf::from("recordings"),
             export_dir: PathBuf::from("fitstation-export"),
@@ -82,6 +92,10 @@ impl Default for AppOptions {
         }
     }
 }
+
+/// Builds a frame processor for a station calibration (or says why it cannot).
+pub type ProcessorFactory =
+    Box<dyn Fn(&StationCalibration) -> Result<Box<dyn FrameProcessor>, String> + Send>;
 
 /// Why the screen could not run.
 #[derive(Debug, thiserror::Error)]
@@ -340,9 +354,13 @@ struct StationApp {
     exit_after: Option<u64>,
     screenshot: ScreenshotState,
     layout: Layout,
-    wizard: Box<dyn CalibrationWizard>,
-    detections: BoardDetections,
-    wizard_status: String,
+    wizard_settings: WizardSettings,
+    /// Started when the operator first turns on live board detection.
+    wizard: Option<CalibrationWizard>,
+    wizard_live: bool,
+    wizard_view: WizardView,
+    board_height_mm: f64,
+    processor_factory: Option<ProcessorFactory>,
     on_backdrop_learned: Option<Box<dyn FnMut() + Send>>,
     record_dir: String,
     export_dir: String,
@@ -355,6 +373,9 @@ struct StationApp {
 
 /// Frames an automatic screenshot waits beyond its frame for a fitted avatar.
 const SCREENSHOT_GRACE_FRAMES: u64 = 600;
+
+/// Station messages of the current snapshot shown to the operator.
+const MESSAGES_SHOWN: usize = 4;
 
 /// Lines kept in the operator's log.
 const LOG_LINES: usize = 8;
@@ -405,11 +426,12 @@ impl StationApp {
             exit_after,
             screenshot: ScreenshotState::None,
             layout: Layout::default(),
-            wizard: opts
-                .calibration_wizard
-                .unwrap_or_else(|| Box::new(NoCalibrationWizard)),
-            detections: BoardDetections::default(),
-            wizard_status: String::new(),
+            board_height_mm: opts.wizard.board_height_m * 1e3,
+            wizard_settings: opts.wizard,
+            wizard: None,
+            wizard_live: false,
+            wizard_view: WizardView::default(),
+            processor_factory: opts.processor_factory,
             on_backdrop_learned: opts.on_backdrop_learned,
             record_dir: opts.record_dir.display().to_string(),
             export_dir: opts.export_dir.display().to_string(),
@@ -469,6 +491,13 @@ impl StationApp {
             }
             self.ui_stats
                 .add("upload", t0.elapsed().as_secs_f64() * 1e3);
+            if self.wizard_live {
+                if let (Some(w), Some(f), Some(sd)) =
+                    (&self.wizard, &snap.front_frame, &snap.side_frame)
+                {
+                    w.offer_frames(f.clone(), sd.clone());
+                }
+            }
             match &snap.avatar {
                 Some(a) if Arc::as_ptr(a) != self.avatar_ptr => {
                     self.avatar_ptr = Arc::as_ptr(a);
@@ -670,53 +699,28 @@ impl StationApp {
                 }
             });
             ui.label(format!("frame {}  phase {:?}", s.frame_index, s.phase));
+            if self.mode == Mode::Operator {
+                for m in s.messages.iter().take(MESSAGES_SHOWN) {
+                    ui.label(RichText::new(m).small());
+                }
+            }
         }
     }
 
     fn operator_panel(&mut self, ui: &mut egui::Ui) {
         egui::ScrollArea::vertical().show(ui, |ui| {
             egui::CollapsingHeader::new("Calibration").default_open(true).show(ui, |ui| {
-                ui.label(self.wizard.describe());
-                ui.horizontal(|ui| {
-                    if ui.button("Detect boards").clicked() {
-                        let frames = self.current.as_ref().and_then(|s| Some((s.front_frame.clone()?, s.side_frame.clone()?)));
-                        match frames {
-                            Some((f, s)) => {
-                                self.detections = self.wizard.detect(&f, &s);
-                                self.wizard_status = format!(
-                                    "{} board(s) in front, {} in side",
-                                    self.detections.front.len(),
-                                    self.detections.side.len()
-                                );
-                            }
-                            None => self.wizard_status = "no frames yet".into(),
-                        }
-                    }
-                    if ui.button("Add view").clicked() {
-                        self.wizard_status = self.wizard.add_view();
-                    }
-                    if ui.button("Solve").clicked() {
-                        match self.wizard.solve() {
-                            Ok(cal) => {
-                                self.wizard_status = "solved: station.yaml ready to save".into();
-                                self.calibration = Some(cal);
-                            }
-                            Err(e) => self.wizard_status = e,
-                        }
-                    }
-                });
-                if !self.wizard_status.is_empty() {
-                    ui.label(&self.wizard_status);
-                }
-                for (name, dets) in [("front", &self.detections.front), ("side", &self.detections.side)] {
-                    for d in dets {
-                        ui.label(format!("{name}: {} — {} corners {}", d.board, d.corners_px.len(), d.note));
-                    }
-                }
+                self.calibration_section(ui);
+            });
+            egui::CollapsingHeader::new("Station").default_open(true).show(ui, |ui| {
                 ui.label(RichText::new("Station checks").strong());
                 let sizes = self.front_tex.as_ref().zip(self.side_tex.as_ref()).map(|(f, s)| (f.frame_size, s.frame_size));
                 let mut checks = operator::station_checks(self.calibration.as_ref(), sizes);
-                checks.extend(self.wizard.station_checks(self.calibration.as_ref()));
+                if let Some(cal) = &self.calibration {
+                    let full = crate::calibrate::check_station(cal);
+                    checks.extend(full.actions.iter().map(|a| format!("PROBLEM: {a}")));
+                    checks.extend(calib_wizard::checks_lines(&full));
+                }
                 for c in checks {
                     let colour = if c.starts_with("PROBLEM") || c.starts_with("No calibration") {
                         Color32::from_rgb(255, 140, 0)
@@ -724,6 +728,11 @@ impl StationApp {
                         ui.visuals().text_color()
                     };
                     ui.label(RichText::new(c).color(colour).small());
+                }
+                if self.processor_factory.is_some() && ui.button("Learn the backdrop again (scene empty!)").clicked() {
+                    if let Some(cal) = self.calibration.clone() {
+                        self.use_calibration(cal, "learning the backdrop again");
+                    }
                 }
             });
             egui::CollapsingHeader::new("Recording").default_open(true).show(ui, |ui| {
@@ -804,6 +813,131 @@ impl StationApp {
                 ui.label(RichText::new(l).small());
             }
         });
+    }
+
+    /// Installs a processor for `cal` (through the factory): the station learns the
+    /// backdrop again and measures with that calibration from the next frame on.
+    fn use_calibration(&mut self, cal: StationCalibration, why: &str) {
+        let Some(factory) = &self.processor_factory else {
+            self.log("this screen cannot change its processor".into());
+            return;
+        };
+        match factory(&cal) {
+            Ok(p) => {
+                if let Ok(mut slot) = self.runner.controls.replace_processor.lock() {
+                    *slot = Some(p);
+                }
+                self.calibration = Some(cal);
+                self.flow.reset();
+                self.clear_subject();
+                self.log(format!(
+                    "{why}: keep the scene empty while the backdrop is learnt"
+                ));
+            }
+            Err(e) => self.log(format!("cannot use the calibration: {e}")),
+        }
+    }
+
+    fn calibration_section(&mut self, ui: &mut egui::Ui) {
+        let s = &self.wizard_settings;
+        ui.label(format!(
+            "{} {}x{} inner corners, {:.1} mm; saves to {}",
+            s.target.name(),
+            s.board.cols,
+            s.board.rows,
+            s.board.square_m * 1e3,
+            s.out.display()
+        ));
+        let was_live = self.wizard_live;
+        ui.checkbox(&mut self.wizard_live, "Live board detection");
+        if self.wizard_live && !was_live && self.wizard.is_none() {
+            match CalibrationWizard::start(self.wizard_settings.clone(), self.calibration.clone()) {
+                Ok(w) => self.wizard = Some(w),
+                Err(e) => {
+                    self.wizard_live = false;
+                    self.log(format!("cannot start the calibration wizard: {e}"));
+                }
+            }
+        }
+        if !self.wizard_live {
+            self.wizard_view.detections = Default::default();
+        }
+        let Some(w) = &self.wizard else {
+            ui.label(RichText::new("Turn on live board detection to calibrate.").small());
+            return;
+        };
+        self.wizard_view = w.view();
+        let v = &self.wizard_view;
+        let step = match v.step {
+            WizardStep::Lenses => "1 lenses",
+            WizardStep::Placement => "2 placement",
+            WizardStep::Review => "3 review",
+        };
+        ui.label(
+            RichText::new(format!(
+                "Step {step} · {} frame pairs searched",
+                v.frames_searched
+            ))
+            .strong(),
+        );
+        for l in &v.lines {
+            ui.label(RichText::new(l).small());
+        }
+        if !v.status.is_empty() {
+            ui.label(RichText::new(&v.status).color(Color32::from_rgb(150, 200, 255)));
+        }
+        let mut actions = Vec::new();
+        ui.horizontal_wrapped(|ui| {
+            match v.step {
+                WizardStep::Lenses => {
+                    if ui.button("Solve lenses").clicked() {
+                        actions.push(WizardAction::SolveLenses);
+                    }
+                }
+                WizardStep::Placement | WizardStep::Review => {
+                    ui.label("board height mm");
+                    if ui
+                        .add(egui::DragValue::new(&mut self.board_height_mm).range(0.0..=3000.0))
+                        .changed()
+                    {
+                        actions.push(WizardAction::SetBoardHeightMm(self.board_height_mm));
+                    }
+                    if ui.button("Place cameras").clicked() {
+                        actions.push(WizardAction::PlaceCameras);
+                    }
+                }
+            }
+            if v.solved.is_some() {
+                if ui.button("Save station.yaml").clicked() {
+                    actions.push(WizardAction::Save { force: false });
+                }
+                if ui.button("Save, replacing a better one").clicked() {
+                    actions.push(WizardAction::Save { force: true });
+                }
+            }
+            if ui.button("Start over").clicked() {
+                actions.push(WizardAction::Reset);
+            }
+        });
+        for a in &v.actions {
+            ui.label(
+                RichText::new(format!("PROBLEM: {a}"))
+                    .color(Color32::from_rgb(255, 140, 0))
+                    .small(),
+            );
+        }
+        for c in &v.checks {
+            ui.label(RichText::new(c).small());
+        }
+        let solved = v.solved.clone();
+        for a in actions {
+            w.act(a);
+        }
+        if let Some(cal) = solved {
+            if self.processor_factory.is_some() && ui.button("Use this calibration now").clicked() {
+                self.use_calibration(cal, "new calibration in use");
+            }
+        }
     }
 
     fn start_recording(&mut self) {
@@ -926,7 +1060,7 @@ impl StationApp {
             "front",
             self.front_tex.as_ref(),
             snap.map(|s| &s.front),
-            &self.detections.front,
+            &self.wizard_view.detections.front,
             show_all,
         );
         self.layout.side = draw_view(
@@ -935,7 +1069,7 @@ impl StationApp {
             "side",
             self.side_tex.as_ref(),
             snap.map(|s| &s.side),
-            &self.detections.side,
+            &self.wizard_view.detections.side,
             show_all,
         );
         // The avatar view with orbit controls and presets.
@@ -1412,6 +1546,12 @@ pub struct DemoUiArgs {
     /// Window size in points, WIDTHxHEIGHT.
     #[arg(long, default_value = "1600x900", value_parser = parse_window_size)]
     pub window: [f32; 2],
+    /// Instead of the synthetic figure: a whole kiosk visit scripted from this
+    /// recording (empty scene, feet cut off, stepping in, holding still, the result,
+    /// leaving until the idle timeout clears it), through the real station processing,
+    /// in a loop. The recording must start with the empty scene.
+    #[arg(long)]
+    pub recording: Option<PathBuf>,
 }
 
 /// Parses "1600x900".
@@ -1428,6 +1568,9 @@ fn parse_window_size(s: &str) -> Result<[f32; 2], String> {
 }
 
 pub fn run_demo_cli(args: DemoUiArgs) -> anyhow::Result<()> {
+    if let Some(rec) = &args.recording {
+        return run_session_cli(&args, rec);
+    }
     let source = demo::DemoSource::new(None);
     let cal = demo::demo_calibration();
     let opts = AppOptions {
@@ -1449,85 +1592,41 @@ pub fn run_demo_cli(args: DemoUiArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// `demo-ui --recording REC`: a scripted kiosk visit through the station processor.
+fn run_session_cli(args: &DemoUiArgs, rec: &Path) -> anyhow::Result<()> {
+    use crate::station::{StationOptions, StationProcessor};
+    let flow = FlowConfig::default();
+    let mut station = StationOptions::default();
+    let mut source = session::SessionSource::open(rec, &flow, station.backdrop_frames)?;
+    source.looping = true;
+    let cal = source
+        .calibration()
+        .cloned()
+        .ok_or_else(|| anyhow::anyhow!("{}: no station.yaml", rec.display()))?;
+    if let Ok(r) = crate::recording::Recording::open(rec) {
+        station.stature_m = r.metadata().stature_m;
+    }
+    let library = crate::station::cli::default_library()?;
+    let processor = StationProcessor::new(cal, library, station.clone())?;
+    let opts = AppOptions {
+        title: format!("fitstation: kiosk session from {}", rec.display()),
+        operator: args.operator,
+        window_size: args.window,
+        exit_after_frames: args
+            .exit_after_frames
+            .or(args.screenshot.as_ref().map(|_| DEFAULT_SCREENSHOT_FRAMES)),
+        screenshot: args.screenshot.clone(),
+        flow,
+        processor_factory: Some(live::station_factory(station, 0)?),
+        ..Default::default()
+    };
+    let summary = run(Box::new(source), Box::new(processor), opts)?;
+    print!("{summary}");
+    Ok(())
+}
+
 /// Frames before a screenshot when only --screenshot is given.
 const DEFAULT_SCREENSHOT_FRAMES: u64 = 150;
-
-/// `fitstation live`: the screen on two cameras (needs the `camera` feature).
-#[derive(clap::Args, Debug)]
-pub struct LiveArgs {
-    /// Front camera: index (0) or device path (/dev/video0).
-    #[arg(long, default_value = "0")]
-    pub front: String,
-    /// Side camera: index or device path.
-    #[arg(long, default_value = "1")]
-    pub side: String,
-    #[arg(long, default_value_t = 1280)]
-    pub width: u32,
-    #[arg(long, default_value_t = 720)]
-    pub height: u32,
-    #[arg(long, default_value_t = 30)]
-    pub fps: u32,
-    /// Pixel format: mjpeg or yuyv.
-    #[arg(long, default_value = "mjpeg")]
-    pub format: String,
-    /// The station calibration (station.yaml); without it the screen warns.
-    #[arg(long)]
-    pub calibration: Option<PathBuf>,
-    /// Start with the operator tools open.
-    #[arg(long)]
-    pub operator: bool,
-    /// Save a screenshot of the window (PNG) after --exit-after-frames frames.
-    #[arg(long)]
-    pub screenshot: Option<PathBuf>,
-    /// Close after this many screen frames.
-    #[arg(long)]
-    pub exit_after_frames: Option<u64>,
-}
-
-pub fn run_live_cli(args: LiveArgs) -> anyhow::Result<()> {
-    #[cfg(feature = "camera")]
-    {
-        use crate::capture::{CameraPairSource, CaptureConfig, PixelFormat};
-        let calibration = match &args.calibration {
-            Some(p) => Some(StationCalibration::load(p)?),
-            None => None,
-        };
-        let format = match args.format.to_ascii_lowercase().as_str() {
-            "mjpeg" | "mjpg" => PixelFormat::Mjpeg,
-            "yuyv" => PixelFormat::Yuyv,
-            other => anyhow::bail!("unknown --format {other}: use mjpeg or yuyv"),
-        };
-        let config = CaptureConfig {
-            front: args.front.clone(),
-            side: args.side.clone(),
-            width: args.width,
-            height: args.height,
-            fps: args.fps,
-            format,
-            ..Default::default()
-        };
-        let source = CameraPairSource::open(config, calibration);
-        let locks = source.controls();
-        let opts = AppOptions {
-            title: "fitstation live".into(),
-            operator: args.operator,
-            exit_after_frames: args
-                .exit_after_frames
-                .or(args.screenshot.as_ref().map(|_| DEFAULT_SCREENSHOT_FRAMES)),
-            screenshot: args.screenshot.clone(),
-            on_backdrop_learned: Some(Box::new(move || locks.request_lock())),
-            ..Default::default()
-        };
-        let summary = run(Box::new(source), Box::new(demo::FramesOnlyProcessor), opts)?;
-        print!("{summary}");
-        Ok(())
-    }
-    #[cfg(not(feature = "camera"))]
-    {
-        let _ = args;
-        anyhow::bail!("this fitstation was built without cameras: rebuild with `cargo build --release --features camera` (needs Debian's libclang-dev)")
-    }
-}
 
 #[cfg(test)]
 mod tests {

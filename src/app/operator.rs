@@ -1,13 +1,10 @@
-//! Operator tools beside the kiosk: the calibration wizard hook and station checks.
-//!
-//! The calibration itself lives in `src/calibrate` (another module); the screen reaches
-//! it only through [`CalibrationWizard`], which the lead implements there. Until then
-//! [`NoCalibrationWizard`] says so on screen. Pixel coordinates are those of each
-//! camera's frames; distances in metres, angles in degrees.
+//! Operator tools beside the kiosk: board detections to draw over the views and the
+//! quick station checks against the frames being received (the calibration wizard is
+//! [`super::calib_wizard`]). Pixel coordinates are those of each camera's frames;
+//! distances in metres, angles in degrees.
 
 use crate::camera::{StationCalibration, View};
 use glam::DVec2;
-use image::RgbImage;
 
 /// One calibration board found in one camera frame.
 #[derive(Debug, Clone, PartialEq)]
@@ -25,39 +22,6 @@ pub struct BoardDetection {
 pub struct BoardDetections {
     pub front: Vec<BoardDetection>,
     pub side: Vec<BoardDetection>,
-}
-
-/// What the operator's calibration panel calls; implemented with `src/calibrate`.
-pub trait CalibrationWizard: Send {
-    /// Finds boards in the current frames (called on the operator's click, UI thread).
-    fn detect(&mut self, front: &RgbImage, side: &RgbImage) -> BoardDetections;
-    /// Keeps the last detection as a calibration view; returns a status line.
-    fn add_view(&mut self) -> String {
-        "adding views is not available".into()
-    }
-    /// Solves the station from the kept views.
-    fn solve(&mut self) -> Result<StationCalibration, String> {
-        Err("solving is not available".into())
-    }
-    /// Extra station checks to show (beside the built-in [`station_checks`]).
-    fn station_checks(&self, _calibration: Option<&StationCalibration>) -> Vec<String> {
-        Vec::new()
-    }
-    /// One line for the panel's title.
-    fn describe(&self) -> String;
-}
-
-/// Placeholder until the calibration module is connected.
-#[derive(Debug, Default)]
-pub struct NoCalibrationWizard;
-
-impl CalibrationWizard for NoCalibrationWizard {
-    fn detect(&mut self, _front: &RgbImage, _side: &RgbImage) -> BoardDetections {
-        BoardDetections::default()
-    }
-    fn describe(&self) -> String {
-        "calibration module not connected (board detection unavailable)".into()
-    }
 }
 
 /// Angle between the optical axes that the station expects (front and side at right
@@ -132,14 +96,5 @@ mod tests {
             1,
             "{bad:?}"
         );
-    }
-
-    #[test]
-    fn placeholder_wizard_detects_nothing() {
-        let mut w = NoCalibrationWizard;
-        let img = RgbImage::new(4, 4);
-        assert_eq!(w.detect(&img, &img), BoardDetections::default());
-        assert!(w.solve().is_err());
-        assert!(w.describe().contains("not connected"));
     }
 }

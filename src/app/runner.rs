@@ -42,6 +42,9 @@ pub struct Controls {
     pub steps: AtomicU64,
     /// Ask the processor to forget the subject before its next frame.
     pub reset_subject: AtomicBool,
+    /// A processor to take over from the next frame on (a new calibration, a backdrop
+    /// to learn again).
+    pub replace_processor: Mutex<Option<Box<dyn FrameProcessor>>>,
     pub stop: AtomicBool,
     /// Times the capture thread found itself paused with no step to take.
     pub pause_polls: AtomicU64,
@@ -197,6 +200,14 @@ impl Runner {
                         if controls.stop.load(Ordering::Relaxed) {
                             break;
                         }
+                        let replacement = controls
+                            .replace_processor
+                            .lock()
+                            .ok()
+                            .and_then(|mut r| r.take());
+                        if let Some(p) = replacement {
+                            processor = p;
+                        }
                         if controls.reset_subject.swap(false, Ordering::Relaxed) {
                             processor.reset_subject();
                         }
@@ -313,6 +324,41 @@ mod tests {
             std::thread::sleep(Duration::from_millis(1));
         }
         panic!("the capture thread never paused");
+    }
+
+    struct Tagged(Phase);
+    impl FrameProcessor for Tagged {
+        fn process(&mut self, pair: &FramePair) -> FitSnapshot {
+            FitSnapshot::empty(pair.index, self.0)
+        }
+    }
+
+    #[test]
+    fn a_replacement_processor_takes_over() {
+        let r = Runner::start(
+            Box::new(Counting {
+                n: 0,
+                end: u64::MAX,
+                fail_at: None,
+            }),
+            Box::new(Tagged(Phase::WaitingForSubject)),
+            Box::new(|| {}),
+        )
+        .expect("threads");
+        let first = r.snapshots.take().expect("a snapshot");
+        assert_eq!(first.phase, Phase::WaitingForSubject);
+        if let Ok(mut slot) = r.controls.replace_processor.lock() {
+            *slot = Some(Box::new(Tagged(Phase::LearningBackdrop)));
+        }
+        // Snapshots already under way may still come from the old processor.
+        let mut swapped = false;
+        for _ in 0..1000 {
+            if r.snapshots.take().expect("a snapshot").phase == Phase::LearningBackdrop {
+                swapped = true;
+                break;
+            }
+        }
+        assert!(swapped, "the replacement never ran");
     }
 
     #[test]
