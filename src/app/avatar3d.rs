@@ -139,7 +139,9 @@ fn fs_mesh(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f3
     let key = normalize(to_eye + vec3<f32>(-0.3, 0.5, 0.0));
     let lambert = max(dot(n, key), 0.0) * 0.8 + max(n.y, 0.0) * 0.15 + 0.12;
     let linear = u.colour.rgb * lambert;
-    return vec4<f32>(pow(linear, vec3<f32>(1.0 / 2.2)), 1.0);
+    // Gamma 2 (a square root) instead of pow(x, 1/2.2): the same look, and far cheaper
+    // per pixel on a software rasteriser.
+    return vec4<f32>(sqrt(max(linear, vec3<f32>(0.0))), 1.0);
 }
 
 struct BlitOut {

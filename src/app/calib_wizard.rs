@@ -596,7 +596,7 @@ pub fn checks_lines(c: &StationChecks) -> Vec<String> {
     c.to_string()
         .lines()
         .map(|l| l.trim().to_string())
-        .filter(|l| !l.is_empty())
+        .filter(|l| !l.is_empty() && l != "Station checks")
         .collect()
 }
 

@@ -338,7 +338,10 @@ struct StationApp {
     /// Size of each camera view on screen at the last frame (pixels).
     view_px: Option<[f32; 2]>,
     avatar_generation: u64,
-    avatar_ptr: *const crate::mesh::TriMesh,
+    /// The avatar drawn in the 3-D view (the newest fit, at most every
+    /// [`AVATAR_PERIOD_S`]) and when it was taken.
+    shown_avatar: Option<Arc<crate::mesh::TriMesh>>,
+    avatar_shown_s: f64,
     orbit: OrbitCamera,
     /// The operator zoomed by hand: stop fitting the avatar into the view.
     user_zoomed: bool,
@@ -373,6 +376,11 @@ struct StationApp {
 
 /// Frames an automatic screenshot waits beyond its frame for a fitted avatar.
 const SCREENSHOT_GRACE_FRAMES: u64 = 600;
+
+/// Shortest time between two renders of the 3-D avatar (seconds): it deforms live at
+/// up to 10 renders a second, and the software renderer is spared a mesh pass per
+/// snapshot.
+pub const AVATAR_PERIOD_S: f64 = 0.1;
 
 /// Station messages of the current snapshot shown to the operator.
 const MESSAGES_SHOWN: usize = 4;
@@ -411,7 +419,8 @@ impl StationApp {
             downscale_scratch: DownscaleScratch::default(),
             view_px: None,
             avatar_generation: 0,
-            avatar_ptr: std::ptr::null(),
+            shown_avatar: None,
+            avatar_shown_s: f64::NEG_INFINITY,
             orbit: OrbitCamera::default(),
             user_zoomed: false,
             ui_meter: RateMeter::default(),
@@ -498,13 +507,6 @@ impl StationApp {
                     w.offer_frames(f.clone(), sd.clone());
                 }
             }
-            match &snap.avatar {
-                Some(a) if Arc::as_ptr(a) != self.avatar_ptr => {
-                    self.avatar_ptr = Arc::as_ptr(a);
-                    self.avatar_generation += 1;
-                }
-                _ => {}
-            }
             self.current = Some(snap);
             if action == Some(FlowAction::ClearSubject) {
                 self.clear_subject();
@@ -527,7 +529,6 @@ impl StationApp {
             s.front = ViewOverlay::default();
             s.side = ViewOverlay::default();
         }
-        self.avatar_ptr = std::ptr::null();
     }
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
@@ -717,12 +718,10 @@ impl StationApp {
                 let sizes = self.front_tex.as_ref().zip(self.side_tex.as_ref()).map(|(f, s)| (f.frame_size, s.frame_size));
                 let mut checks = operator::station_checks(self.calibration.as_ref(), sizes);
                 if let Some(cal) = &self.calibration {
-                    let full = crate::calibrate::check_station(cal);
-                    checks.extend(full.actions.iter().map(|a| format!("PROBLEM: {a}")));
-                    checks.extend(calib_wizard::checks_lines(&full));
+                    checks.extend(calib_wizard::checks_lines(&crate::calibrate::check_station(cal)));
                 }
                 for c in checks {
-                    let colour = if c.starts_with("PROBLEM") || c.starts_with("No calibration") {
+                    let colour = if c.starts_with("PROBLEM") || c.starts_with("ACTION") || c.starts_with("No calibration") {
                         Color32::from_rgb(255, 140, 0)
                     } else {
                         ui.visuals().text_color()
@@ -1093,8 +1092,29 @@ impl StationApp {
                 self.user_zoomed = true;
             }
         }
-        let mesh = self.current.as_ref().and_then(|s| s.avatar.clone());
-        if let Some(m) = &mesh {
+        // The newest fit replaces the one on screen at most every AVATAR_PERIOD_S (the
+        // 3-D view is rendered again only then); a cleared avatar goes at once.
+        let latest = self.current.as_ref().and_then(|s| s.avatar.clone());
+        let changed = match (&latest, &self.shown_avatar) {
+            (Some(a), Some(b)) => !Arc::ptr_eq(a, b),
+            (None, None) => false,
+            _ => true,
+        };
+        let now = self.now_s();
+        let due = now - self.avatar_shown_s >= AVATAR_PERIOD_S;
+        let take = changed && (due || latest.is_none() || self.shown_avatar.is_none());
+        if take {
+            self.shown_avatar = latest;
+            self.avatar_generation += 1;
+            self.avatar_shown_s = now;
+        } else if changed {
+            ui.ctx()
+                .request_repaint_after(std::time::Duration::from_secs_f64(
+                    (AVATAR_PERIOD_S - (now - self.avatar_shown_s)).max(0.0),
+                ));
+        }
+        let mesh = self.shown_avatar.clone();
+        if let (true, Some(m)) = (take, &mesh) {
             if let Some(b) = m.bounds() {
                 let c = b.center();
                 self.orbit.target = glam::Vec3::new(0.0, c.y as f32, 0.0);
@@ -1286,15 +1306,22 @@ fn upload(
     }
     let factor = display_factor(frame.width(), frame.height(), target_px);
     let img = downscale_by(frame, factor, scratch);
+    // Box-filtered to between one and two texels per screen pixel: nearest sampling
+    // looks the same and costs a software renderer a quarter of the texel fetches.
+    let filter = if target_px.is_some() {
+        egui::TextureOptions::NEAREST
+    } else {
+        egui::TextureOptions::LINEAR
+    };
     let frame_size = [frame.width(), frame.height()];
     match slot {
         Some(t) => {
-            t.handle.set(img, egui::TextureOptions::LINEAR);
+            t.handle.set(img, filter);
             t.frame_size = frame_size;
             t.source = ptr;
         }
         None => {
-            let handle = ctx.load_texture(name, img, egui::TextureOptions::LINEAR);
+            let handle = ctx.load_texture(name, img, filter);
             *slot = Some(ViewTexture {
                 handle,
                 frame_size,
