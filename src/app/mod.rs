@@ -7,15 +7,18 @@
 //! Entry point: [`run`] with any [`FrameSource`] and [`FrameProcessor`]; `fitstation
 //! demo-ui` runs it on the synthetic [`demo`] station. Threads: see [`runner`]. The
 //! screen owns the displayed snapshot, the textures and the flow; it uploads a camera
-//! frame to the GPU only when a new one arrives, downscaled to at most
-//! [`DISPLAY_MAX_PX`] on its longer side. Overlay coordinates are the cameras' pixels;
-//! the avatar is in the station frame (metres).
+//! frame to the GPU only when a new one arrives, box-filtered to the view's size on
+//! screen ([`frame_view`] draws it without blending); panels have no fills and the
+//! avatar's picture is drawn only over the body: on a software renderer every covered
+//! pixel costs, every frame. Overlay coordinates are the cameras' pixels; the avatar is
+//! in the station frame (metres).
 
 pub mod avatar3d;
 pub mod calib_wizard;
 pub mod demo;
 pub mod export;
 pub mod flow;
+pub mod frame_view;
 pub mod live;
 pub mod operator;
 pub mod record;
@@ -29,7 +32,7 @@ use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FrameProcessor, FrameSource, MeasurementValue, ViewOverlay};
 use avatar3d::{AvatarCallback, AvatarResources, OrbitCamera, ViewPreset};
 use calib_wizard::{CalibrationWizard, WizardAction, WizardSettings, WizardStep, WizardView};
-use egui::{Color32, Pos2, Rect, RichText, Stroke, TextureHandle, Vec2};
+use egui::{Color32, Pos2, Rect, RichText, Stroke, Vec2};
 use flow::{FlowAction, FlowConfig, FlowInput, FlowState, KioskFlow};
 use runner::Runner;
 use std::collections::VecDeque;
@@ -141,6 +144,13 @@ pub fn run(
                 .write()
                 .callback_resources
                 .insert(AvatarResources::new(&rs.device, rs.target_format));
+            rs.renderer
+                .write()
+                .callback_resources
+                .insert(frame_view::FrameViewResources::new(
+                    &rs.device,
+                    rs.target_format,
+                ));
             let ctx = cc.egui_ctx.clone();
             let app = StationApp::new(
                 source,
@@ -304,8 +314,13 @@ enum Mode {
 }
 
 /// A camera view's texture and the size of the frame it came from.
+/// A camera view's display image ([`frame_view`] uploads it when `generation` changes)
+/// and the size of the frame it came from.
 struct ViewTexture {
-    handle: TextureHandle,
+    /// 0 front, 1 side.
+    slot: usize,
+    image: Arc<egui::ColorImage>,
+    generation: u64,
     frame_size: [u32; 2],
     source: *const image::RgbImage,
 }
@@ -463,7 +478,7 @@ impl StationApp {
     }
 
     /// Takes the newest snapshot, feeds the flow, uploads changed frames.
-    fn poll_snapshot(&mut self, ctx: &egui::Context) {
+    fn poll_snapshot(&mut self) {
         let now = self.now_s();
         if let Some(snap) = self.runner.snapshots.try_take() {
             self.snapshots_shown += 1;
@@ -480,9 +495,8 @@ impl StationApp {
             let t0 = Instant::now();
             if let Some(f) = &snap.front_frame {
                 upload(
-                    ctx,
                     &mut self.front_tex,
-                    "front",
+                    0,
                     f,
                     self.view_px,
                     &mut self.downscale_scratch,
@@ -490,9 +504,8 @@ impl StationApp {
             }
             if let Some(f) = &snap.side_frame {
                 upload(
-                    ctx,
                     &mut self.side_tex,
-                    "side",
+                    1,
                     f,
                     self.view_px,
                     &mut self.downscale_scratch,
@@ -1185,7 +1198,7 @@ impl eframe::App for StationApp {
         self.frames += 1;
         let now = self.now_s();
         self.ui_meter.tick(now);
-        self.poll_snapshot(&ctx);
+        self.poll_snapshot();
 
         // Panels without fills: the clear colour is their background.
         let bare = || egui::Frame::NONE.inner_margin(PANEL_MARGIN);
@@ -1290,12 +1303,12 @@ fn stability_indicator(ui: &mut egui::Ui, spread_mm: f64) {
     });
 }
 
-/// Uploads `frame` into `slot` unless it is the frame already shown, box-filtered down
-/// to about `target_px` (the view's size on screen in pixels, when known).
+/// Prepares `frame` for display in `slot` unless it is the frame already shown,
+/// box-filtered down to about `target_px` (the view's size on screen in pixels, when
+/// known); the paint callback uploads it once.
 fn upload(
-    ctx: &egui::Context,
     slot: &mut Option<ViewTexture>,
-    name: &str,
+    index: usize,
     frame: &Arc<image::RgbImage>,
     target_px: Option<[f32; 2]>,
     scratch: &mut DownscaleScratch,
@@ -1305,30 +1318,16 @@ fn upload(
         return;
     }
     let factor = display_factor(frame.width(), frame.height(), target_px);
-    let img = downscale_by(frame, factor, scratch);
-    // Box-filtered to between one and two texels per screen pixel: nearest sampling
-    // looks the same and costs a software renderer a quarter of the texel fetches.
-    let filter = if target_px.is_some() {
-        egui::TextureOptions::NEAREST
-    } else {
-        egui::TextureOptions::LINEAR
-    };
+    let image = Arc::new(downscale_by(frame, factor, scratch));
     let frame_size = [frame.width(), frame.height()];
-    match slot {
-        Some(t) => {
-            t.handle.set(img, filter);
-            t.frame_size = frame_size;
-            t.source = ptr;
-        }
-        None => {
-            let handle = ctx.load_texture(name, img, filter);
-            *slot = Some(ViewTexture {
-                handle,
-                frame_size,
-                source: ptr,
-            });
-        }
-    }
+    let generation = slot.as_ref().map_or(1, |t| t.generation + 1);
+    *slot = Some(ViewTexture {
+        slot: index,
+        image,
+        generation,
+        frame_size,
+        source: ptr,
+    });
 }
 
 /// Reusable buffers of [`downscale_by`].
@@ -1453,12 +1452,14 @@ fn draw_view(
     let scale = (area.width() / fw as f32).min(area.height() / fh as f32);
     let size = Vec2::new(fw as f32 * scale, fh as f32 * scale);
     let rect = Rect::from_center_size(area.center(), size);
-    painter.image(
-        tex.handle.id(),
+    painter.add(eframe::egui_wgpu::Callback::new_paint_callback(
         rect,
-        Rect::from_min_max(Pos2::ZERO, Pos2::new(1.0, 1.0)),
-        Color32::WHITE,
-    );
+        frame_view::FrameViewCallback {
+            slot: tex.slot,
+            image: tex.image.clone(),
+            generation: tex.generation,
+        },
+    ));
     let to_screen = |p: glam::DVec2| {
         Pos2::new(
             rect.min.x + p.x as f32 * scale,
