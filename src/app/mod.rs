@@ -238,6 +238,7 @@ impl std::fmt::Display for RunSummary {
             let per: Vec<String> = self
                 .thread_cpu
                 .iter()
+                .filter(|(_, c)| *c > 0.0)
                 .map(|(n, c)| format!("{n} {:.1}", 1e3 * c / self.ui_frames as f64))
                 .collect();
             writeln!(f, "cpu ms per screen frame by thread: {}", per.join(", "))?;
