@@ -149,6 +149,27 @@ fn survey() {
             let (tw, td) = extents(&true_mesh, y, crotch.x);
             eprintln!("   {name:<6} y {y:.3}: width {aw:6.1} vs {tw:6.1} ({:+5.1}), depth {ad:6.1} vs {td:6.1} ({:+5.1})", aw - tw, ad - td);
         }
+        let leg = |mesh: &TriMesh, y: f64| -> (f64, f64) {
+            let loops = slice(mesh, &Plane::horizontal(y));
+            let mut best = (f64::NAN, f64::NAN, 0.0);
+            for l in loops {
+                let (lo, hi) = l
+                    .points
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.x), b.max(p.x)));
+                let (zl, zh) = l
+                    .points
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.y), b.max(p.y)));
+                if 0.5 * (lo + hi) > crotch.x + 0.03 && hi - lo > best.2 && hi - lo < 0.3 {
+                    best = (1e3 * (hi - lo), 1e3 * (zh - zl), hi - lo);
+                }
+            }
+            (best.0, best.1)
+        };
+        let (aw, ad) = leg(&avatar, lv.thigh_m);
+        let (tw, td) = leg(&true_mesh, lv.thigh_m);
+        eprintln!("   thighL y {:.3}: width {aw:6.1} vs {tw:6.1} ({:+5.1}), depth {ad:6.1} vs {td:6.1} ({:+5.1})", lv.thigh_m, aw - tw, ad - td);
         eprintln!(
             "   levels avatar/truth: crotch {:.3}/{:.3} hip {:.3}/{:.3} waist {:.3}/{:.3} chest {:.3}/{:.3} armpit {:.3}/{:.3}",
             m.levels.crotch_m, lv.crotch_m, m.levels.hip_m, lv.hip_m, m.levels.waist_m, lv.waist_m, m.levels.chest_m, lv.chest_m, m.levels.armpit_m, lv.armpit_m

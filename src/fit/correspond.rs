@@ -177,6 +177,11 @@ pub struct ControlSet {
     /// Per leg slice: the other leg's vertices in the same band (in the side view the two
     /// legs overlap; only the one reaching further out owns the silhouette's edge).
     pub slice_rivals: Vec<Vec<u32>>,
+    /// Part of each slice.
+    pub slice_part: Vec<Part>,
+    /// Height band of each slice (bands are shared by all parts: band k of the left leg
+    /// and band k of the right leg lie at the same height).
+    pub slice_band: Vec<u32>,
     pub variant: Option<Variant>,
 }
 
@@ -296,6 +301,8 @@ pub fn select_controls(
                 }
             }
             set.slice_members.push(members);
+            set.slice_part.push(part);
+            set.slice_band.push(k as u32);
         }
     }
     set

@@ -19,6 +19,7 @@
 pub mod correspond;
 pub mod parts;
 pub mod pose;
+pub mod sections;
 pub mod shape;
 
 use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
@@ -52,6 +53,9 @@ pub struct FitOptions {
     pub search: SearchOptions,
     /// Number of library bodies the candidate is chosen from.
     pub library_size: usize,
+    /// Section-consistent dense targets on the trunk and legs ([`sections`]); off: only
+    /// the paper's sparse extreme controls.
+    pub dense_sections: bool,
 }
 
 impl Default for FitOptions {
@@ -64,6 +68,7 @@ impl Default for FitOptions {
             first_fit_rounds: 3,
             search: SearchOptions::default(),
             library_size: 252,
+            dense_sections: true,
         }
     }
 }
@@ -111,6 +116,9 @@ pub struct FitStats {
 struct SubjectState {
     params: ShapeParams,
     controls: ControlSet,
+    /// Dense section targets' plan, and its vertices that are not sparse controls.
+    plan: Option<sections::SectionPlan>,
+    dense: Vec<u32>,
     deformer: MvcDeformer,
     rest: TriMesh,
     /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
@@ -123,6 +131,8 @@ pub struct Fitter {
     library: Arc<ShapeLibrary>,
     opts: FitOptions,
     template_labels: Vec<Part>,
+    /// The template's edges (for true cross-sections in the shape descriptor).
+    edges: Vec<[u32; 2]>,
     pose_joints: pose::PoseJoints,
     rigid: Vec<Vec<u32>>,
     library_params: Vec<ShapeParams>,
@@ -131,6 +141,10 @@ pub struct Fitter {
     centroids: Vec<DVec3>,
     targets: Vec<Option<DVec3>>,
     target_buf: Vec<DVec3>,
+    section_scratch: sections::SectionScratch,
+    vertex_targets: Vec<Option<DVec3>>,
+    /// Rasterised silhouette of the candidate (first fit only).
+    raster: Vec<u8>,
 }
 
 impl Fitter {
@@ -143,15 +157,17 @@ impl Fitter {
         let mut library_params = Vec::with_capacity(opts.library_size);
         let mut library_descriptors = Vec::with_capacity(opts.library_size);
         let mut buf = Vec::new();
+        let edges = shape::unique_edges(&template.mesh.triangles);
         for seed in 0..opts.library_size as u64 {
             let p = ShapeLibrary::sample_adult(seed);
             library.body_into(&p, &mut buf);
-            library_descriptors.push(shape::mesh_descriptor(&buf, &template_labels));
+            library_descriptors.push(shape::mesh_descriptor(&buf, &edges, &template_labels));
             library_params.push(p);
         }
         let pose_joints = pose::PoseJoints::new(template);
         let rigid = pose::rigid_groups(template);
         Ok(Fitter {
+            edges,
             pose_joints,
             rigid,
             library,
@@ -163,6 +179,9 @@ impl Fitter {
             centroids: Vec::new(),
             targets: Vec::new(),
             target_buf: Vec::new(),
+            section_scratch: Default::default(),
+            vertex_targets: Vec::new(),
+            raster: Vec::new(),
         })
     }
 
@@ -230,10 +249,31 @@ impl Fitter {
             }
             // Controls without a target this frame hold their current position; the rigid
             // parts hold the candidate's.
+            self.vertex_targets.clear();
+            if let Some(plan) = &s.plan {
+                // Mapped from the candidate itself, not from the last frame's avatar: each
+                // frame's surface is a function of the candidate and this frame's targets
+                // (no drift through a run of bad masks).
+                plan.targets(
+                    &s.rest.positions,
+                    &s.controls,
+                    &self.targets,
+                    &mut self.section_scratch,
+                    &mut self.vertex_targets,
+                );
+            }
+            let dense_at = |v: u32| self.vertex_targets.get(v as usize).copied().flatten();
             self.target_buf.clear();
             for (c, t) in s.controls.controls.iter().zip(&self.targets) {
+                self.target_buf.push(
+                    dense_at(c.vertex)
+                        .or(*t)
+                        .unwrap_or(s.positions[c.vertex as usize]),
+                );
+            }
+            for &v in &s.dense {
                 self.target_buf
-                    .push(t.unwrap_or(s.positions[c.vertex as usize]));
+                    .push(dense_at(v).unwrap_or(s.positions[v as usize]));
             }
             self.target_buf
                 .extend(s.pinned.iter().map(|&v| s.rest.positions[v as usize]));
@@ -311,6 +351,7 @@ impl Fitter {
         if self.opts.refine_shape {
             params = shape_refine(
                 &self.library,
+                &self.edges,
                 &self.template_labels,
                 params,
                 &observed,
@@ -328,10 +369,17 @@ impl Fitter {
             .unwrap_or(obs.torso_point);
         let own = shape::torso_centre(
             &body.positions,
+            &self.edges,
             &self.template_labels,
             PLACEMENT_LEVEL * stature,
         )
         .unwrap_or(DVec3::ZERO);
+        if std::env::var_os("FITSTATION_DEBUG").is_some() {
+            eprintln!(
+                "placement: seen {seen:?} own {own:?} k {k:.4} torso_point {:?}",
+                obs.torso_point
+            );
+        }
         body.map_positions(|p| {
             DVec3::new(
                 (p.x - own.x) * k + seen.x,
@@ -339,6 +387,9 @@ impl Fitter {
                 (p.z - own.z) * k + seen.z,
             )
         });
+        // Vertical proportions: the crotch where the front view sees it (the library's
+        // proportions are a prior; the gap between the legs is measured).
+        self.align_crotch(&mut body, calib, front, seen, obs.stature_m);
         // 4. Pose synchronisation.
         pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
         // 5. Controls and deformer on the posed candidate.
@@ -362,6 +413,23 @@ impl Fitter {
             .filter(|&v| excluded[v as usize])
             .collect();
         let mut indices: Vec<u32> = controls.controls.iter().map(|c| c.vertex).collect();
+        let (plan, dense) = if self.opts.dense_sections {
+            let plan = sections::SectionPlan::new(&controls);
+            let mut taken = vec![false; body.vertex_count()];
+            for &v in indices.iter().chain(&pinned) {
+                taken[v as usize] = true;
+            }
+            let dense: Vec<u32> = plan
+                .vertices
+                .iter()
+                .copied()
+                .filter(|&v| !std::mem::replace(&mut taken[v as usize], true))
+                .collect();
+            (Some(plan), dense)
+        } else {
+            (None, Vec::new())
+        };
+        indices.extend_from_slice(&dense);
         indices.extend_from_slice(&pinned);
         let dopts = DecodeOptions {
             max_iterations: DECODE_ITERATIONS_PER_SOLVE,
@@ -373,6 +441,8 @@ impl Fitter {
             .set_controls(&indices)
             .map_err(|e| FitError::Deform(e.to_string()))?;
         self.subject = Some(SubjectState {
+            plan,
+            dense,
             pinned,
             params,
             controls,
@@ -384,10 +454,79 @@ impl Fitter {
     }
 }
 
+impl Fitter {
+    /// Stretches `body` vertically (soles and crown fixed, piecewise linear about the
+    /// crotch) so that the front camera sees its crotch where it sees the subject's: the
+    /// top of the gap between the legs on the vertical line through the trunk's centre
+    /// `axis`, found the same way on the silhouette and on the body's own rasterised
+    /// silhouette (so the camera's perspective cancels).
+    fn align_crotch(
+        &mut self,
+        body: &mut TriMesh,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        axis: DVec3,
+        stature: f64,
+    ) {
+        let (y_from, y_to) = (CROTCH_SEARCH.0 * stature, CROTCH_SEARCH.1 * stature);
+        let cam = &calib.front;
+        let Some(seen) = shape::gap_top_on_axis(cam, front, axis.x, axis.z, y_from, y_to) else {
+            return;
+        };
+        for _ in 0..CROTCH_ROUNDS {
+            shape::rasterize_band(
+                &body.positions,
+                &body.triangles,
+                cam,
+                front.width,
+                front.height,
+                (y_from - CROTCH_BAND_MARGIN_M, y_to + CROTCH_BAND_MARGIN_M),
+                &mut self.raster,
+            );
+            let own_mask = MaskRef {
+                width: front.width,
+                height: front.height,
+                data: &self.raster,
+            };
+            let Some(own) = shape::gap_top_on_axis(cam, own_mask, axis.x, axis.z, y_from, y_to)
+            else {
+                return;
+            };
+            let d = seen - own;
+            if d.abs() > MAX_CROTCH_SHIFT_M || d.abs() < 1e-4 {
+                return;
+            }
+            if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                eprintln!("crotch: seen {seen:.4} own {own:.4}");
+            }
+            let low = (own + d) / own;
+            let high = (stature - own - d) / (stature - own);
+            body.map_positions(|p| {
+                let y = if p.y <= own {
+                    p.y * low
+                } else {
+                    own + d + (p.y - own) * high
+                };
+                DVec3::new(p.x, y, p.z)
+            });
+        }
+    }
+}
+
+/// Heights (fractions of stature) between which the crotch is looked for.
+const CROTCH_SEARCH: (f64, f64) = (0.30, 0.60);
+/// Rounds of the crotch alignment (rasterise, compare, stretch).
+const CROTCH_ROUNDS: usize = 2;
+/// Margin around the search band within which triangles are rasterised, metres.
+const CROTCH_BAND_MARGIN_M: f64 = 0.05;
+/// Largest crotch correction believed, metres (more: the observation is wrong).
+const MAX_CROTCH_SHIFT_M: f64 = 0.08;
+
 /// Gauss-Newton with a finite-difference Jacobian on the shape descriptor over the macro
 /// parameters (gender, muscle, weight, height, proportions, age); they stay in range.
 fn shape_refine(
     library: &ShapeLibrary,
+    edges: &[[u32; 2]],
     labels: &[Part],
     start: ShapeParams,
     observed: &shape::ShapeDescriptor,
@@ -399,7 +538,7 @@ fn shape_refine(
     let mut buf = Vec::new();
     let residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
         library.body_into(p, buf);
-        let d = shape::mesh_descriptor(buf, labels).as_vec();
+        let d = shape::mesh_descriptor(buf, edges, labels).as_vec();
         d.iter()
             .zip(&obs)
             .map(|(a, b)| {
@@ -480,7 +619,10 @@ fn shape_refine(
 }
 
 /// Solves a small dense system by Gaussian elimination with partial pivoting.
-fn solve_small<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
+pub(crate) fn solve_small<const N: usize>(
+    mut a: [[f64; N]; N],
+    mut b: [f64; N],
+) -> Option<[f64; N]> {
     for c in 0..N {
         let piv = (c..N).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
         if a[piv][c].abs() < 1e-15 {

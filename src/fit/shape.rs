@@ -22,8 +22,6 @@ pub const TORSO_LEVELS: [f64; 12] = [
 ];
 /// Heights (fractions of stature) at which the thighs are sampled (below the crotch).
 pub const THIGH_LEVELS: [f64; 2] = [0.40, 0.43];
-/// Half-thickness of the band of vertices taken as one level, metres.
-const BAND_HALF_M: f64 = 0.008;
 
 /// Torso widths and depths and thigh widths (left, right) at the levels above, divided by
 /// stature.
@@ -65,54 +63,109 @@ impl ShapeDescriptor {
     }
 }
 
-/// Descriptor of a body mesh (vertex positions with the template's part labels), standing
-/// with soles on y = 0.
-pub fn mesh_descriptor(positions: &[DVec3], labels: &[Part]) -> ShapeDescriptor {
+/// The undirected edges of a triangle list, each once (for [`mesh_descriptor`]).
+pub fn unique_edges(triangles: &[[u32; 3]]) -> Vec<[u32; 2]> {
+    let mut e: Vec<[u32; 2]> = triangles
+        .iter()
+        .flat_map(|t| [[t[0], t[1]], [t[1], t[2]], [t[2], t[0]]])
+        .map(|[a, b]| if a < b { [a, b] } else { [b, a] })
+        .collect();
+    e.sort_unstable();
+    e.dedup();
+    e
+}
+
+/// Whether a vertex of this part counts for the trunk's extents at a height: the torso
+/// and the legs (part labels follow the template's crotch, so on a body with other
+/// proportions the buttocks may carry leg labels above its own crotch; a silhouette does
+/// not know labels either). Arms and head never.
+fn is_trunk(l: Part) -> bool {
+    matches!(l, Part::Torso | Part::LeftLeg | Part::RightLeg)
+}
+
+/// Extents (component-wise min and max) of the mesh's true cross-sections at the heights
+/// `ys` (ascending), over the edges whose both ends `select` accepts. One pass over the
+/// edges: every edge crossing a height contributes its crossing point (vertex bands
+/// would miss rows of a coarse mesh).
+fn section_extents(
+    positions: &[DVec3],
+    edges: &[[u32; 2]],
+    labels: &[Part],
+    ys: &[f64],
+    select: impl Fn(Part) -> bool,
+) -> Vec<Option<(DVec3, DVec3)>> {
+    let mut out: Vec<Option<(DVec3, DVec3)>> = vec![None; ys.len()];
+    for &[a, b] in edges {
+        let (Some(&la), Some(&lb)) = (labels.get(a as usize), labels.get(b as usize)) else {
+            continue;
+        };
+        if !(select(la) && select(lb)) {
+            continue;
+        }
+        let (pa, pb) = (positions[a as usize], positions[b as usize]);
+        let (lo, hi) = if pa.y <= pb.y { (pa, pb) } else { (pb, pa) };
+        if hi.y - lo.y < 1e-12 {
+            continue;
+        }
+        let first = ys.partition_point(|&y| y < lo.y);
+        for (k, &y) in ys.iter().enumerate().skip(first) {
+            if y >= hi.y {
+                break;
+            }
+            let q = lo + (hi - lo) * ((y - lo.y) / (hi.y - lo.y));
+            let e = out[k].get_or_insert((q, q));
+            e.0 = e.0.min(q);
+            e.1 = e.1.max(q);
+        }
+    }
+    out
+}
+
+/// Descriptor of a body mesh (vertex positions with the template's part labels and
+/// edges), standing with soles on y = 0.
+pub fn mesh_descriptor(
+    positions: &[DVec3],
+    edges: &[[u32; 2]],
+    labels: &[Part],
+) -> ShapeDescriptor {
     let stature = positions.iter().map(|p| p.y).fold(f64::MIN, f64::max)
         - positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);
     let stature = stature.max(1e-6);
-    let extent = |level: f64, part: Part, axis: usize| -> f64 {
-        let y = level * stature;
-        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
-        for (p, l) in positions.iter().zip(labels) {
-            if *l == part && (p.y - y).abs() <= BAND_HALF_M {
-                let c = p.to_array()[axis];
-                lo = lo.min(c);
-                hi = hi.max(c);
-            }
-        }
-        if hi > lo {
-            (hi - lo) / stature
-        } else {
-            f64::NAN
+    let ratio = |e: Option<(DVec3, DVec3)>, axis: usize| -> f64 {
+        match e {
+            Some((lo, hi)) if hi[axis] > lo[axis] => (hi[axis] - lo[axis]) / stature,
+            _ => f64::NAN,
         }
     };
+    let torso_ys: Vec<f64> = TORSO_LEVELS.iter().map(|l| l * stature).collect();
+    let trunk = section_extents(positions, edges, labels, &torso_ys, is_trunk);
+    let thigh_ys: Vec<f64> = THIGH_LEVELS.iter().map(|l| l * stature).collect();
+    let left = section_extents(positions, edges, labels, &thigh_ys, |l| l == Part::LeftLeg);
+    let right = section_extents(positions, edges, labels, &thigh_ys, |l| l == Part::RightLeg);
     ShapeDescriptor {
-        torso_width: TORSO_LEVELS
+        torso_width: trunk.iter().map(|e| ratio(*e, 0)).collect(),
+        torso_depth: trunk.iter().map(|e| ratio(*e, 2)).collect(),
+        thigh_width: left
             .iter()
-            .map(|&l| extent(l, Part::Torso, 0))
-            .collect(),
-        torso_depth: TORSO_LEVELS
-            .iter()
-            .map(|&l| extent(l, Part::Torso, 2))
-            .collect(),
-        thigh_width: THIGH_LEVELS
-            .iter()
-            .flat_map(|&l| [extent(l, Part::LeftLeg, 0), extent(l, Part::RightLeg, 0)])
+            .zip(&right)
+            .flat_map(|(l, r)| [ratio(*l, 0), ratio(*r, 0)])
             .collect(),
         stature_m: stature,
     }
 }
 
-/// Centre of the x and z extents of the torso vertices within a band around height `y`.
-pub fn torso_centre(positions: &[DVec3], labels: &[Part], y: f64) -> Option<DVec3> {
-    let (mut lo, mut hi) = (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN));
-    for (p, l) in positions.iter().zip(labels) {
-        if *l == Part::Torso && (p.y - y).abs() <= BAND_HALF_M {
-            lo = lo.min(*p);
-            hi = hi.max(*p);
-        }
-    }
+/// Centre of the x and z extents of the trunk's cross-section (torso and legs, see
+/// [`is_trunk`]) at height `y`.
+pub fn torso_centre(
+    positions: &[DVec3],
+    edges: &[[u32; 2]],
+    labels: &[Part],
+    y: f64,
+) -> Option<DVec3> {
+    let (lo, hi) = section_extents(positions, edges, labels, &[y], is_trunk)
+        .first()
+        .copied()
+        .flatten()?;
     (hi.x > lo.x).then(|| DVec3::new(0.5 * (lo.x + hi.x), y, 0.5 * (lo.z + hi.z)))
 }
 
@@ -229,4 +282,100 @@ pub fn observed_descriptor(
         }
     }
     d
+}
+
+/// Where, walking up the vertical line through (`x`, `z`) from `y_from` (which must lie in
+/// the gap between the legs), the silhouette seen by `cam` begins: the crotch as that
+/// camera sees it, on that line. None when the start is already inside the silhouette
+/// (legs together) or nothing is met below `y_to`.
+pub fn gap_top_on_axis(
+    cam: &Camera,
+    mask: MaskRef<'_>,
+    x: f64,
+    z: f64,
+    y_from: f64,
+    y_to: f64,
+) -> Option<f64> {
+    let at = |y: f64| DVec3::new(x, y, z);
+    let occ = |y: f64| {
+        cam.project(at(y))
+            .map(|px| mask.occupancy(px))
+            .unwrap_or(0.0)
+    };
+    if occ(y_from) >= 0.5 {
+        return None;
+    }
+    let a = cam.project(at(y_from))?;
+    let b = cam.project(at(y_to))?;
+    let n = (((b - a).length() / 0.5).ceil() as usize).clamp(2, 8000);
+    let mut prev = y_from;
+    for i in 1..=n {
+        let y = y_from + (y_to - y_from) * i as f64 / n as f64;
+        if occ(y) >= 0.5 {
+            let (mut lo, mut hi) = (prev, y);
+            for _ in 0..14 {
+                let mid = 0.5 * (lo + hi);
+                if occ(mid) >= 0.5 {
+                    hi = mid
+                } else {
+                    lo = mid
+                }
+            }
+            return Some(0.5 * (lo + hi));
+        }
+        prev = y;
+    }
+    None
+}
+
+/// Rasterises into `out` (`width` x `height`, 255 = body) the silhouette that `cam` sees
+/// of the triangles having a vertex with y in `y_range` (the band the caller looks at).
+pub fn rasterize_band(
+    positions: &[DVec3],
+    triangles: &[[u32; 3]],
+    cam: &Camera,
+    width: u32,
+    height: u32,
+    y_range: (f64, f64),
+    out: &mut Vec<u8>,
+) {
+    use glam::DVec2;
+    let (w, h) = (width as usize, height as usize);
+    out.clear();
+    out.resize(w * h, 0);
+    for t in triangles {
+        let v = t.map(|i| positions[i as usize]);
+        if !v.iter().any(|p| p.y >= y_range.0 && p.y <= y_range.1) {
+            continue;
+        }
+        let (Some(p0), Some(p1), Some(p2)) =
+            (cam.project(v[0]), cam.project(v[1]), cam.project(v[2]))
+        else {
+            continue;
+        };
+        let p = [p0, p1, p2];
+        let area = (p1 - p0).perp_dot(p2 - p0);
+        if area.abs() < 1e-12 {
+            continue;
+        }
+        let min = p0.min(p1).min(p2).floor().max(DVec2::ZERO);
+        let max = p0
+            .max(p1)
+            .max(p2)
+            .ceil()
+            .min(DVec2::new(w as f64 - 1.0, h as f64 - 1.0));
+        if min.x > max.x || min.y > max.y {
+            continue;
+        }
+        for y in min.y as usize..=max.y as usize {
+            for x in min.x as usize..=max.x as usize {
+                let q = DVec2::new(x as f64, y as f64);
+                let w0 = (p[1] - q).perp_dot(p[2] - q) / area;
+                let w1 = (p[2] - q).perp_dot(p[0] - q) / area;
+                if w0 >= 0.0 && w1 >= 0.0 && w0 + w1 <= 1.0 {
+                    out[y * w + x] = 255;
+                }
+            }
+        }
+    }
 }

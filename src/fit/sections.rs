@@ -1,0 +1,586 @@
+//! Section-consistent targets for the trunk and the legs (an addition to method.md
+//! section 3's correspondence).
+//!
+//! The paper moves only the slice-extreme control vertices and lets the mean value
+//! decoding carry the rest of the surface. Mean value coordinates keep each vertex's
+//! offset from its neighbours' plane in absolute terms, so between sparse controls the
+//! surface keeps the candidate's curvature: a section that should shrink stays round and
+//! bulges past its extremes, and its girth comes out too large. The two views say more
+//! than four points per slice, though: the front view fixes the section's x extent and
+//! the side view its z extent. Here every slice of the trunk and of each leg is mapped by
+//! an axis-wise affine map (x' = x + a + (s - 1)(x - c), the same for z) that takes its
+//! extreme controls onto their targets; the scales and shifts are smoothed along the
+//! part with a running median (a notch or a stray target does not ripple the surface),
+//! filled in from the neighbours where a view gives only one side or none (an arm over
+//! the trunk, the other leg), and blended linearly in height between slice centres. Every
+//! vertex of those slices then gets the mapped position as its target, so the section
+//! keeps the candidate's (the statistical shape prior's) shape, scaled to both views.
+//!
+//! In the side view the legs overlap: there the two legs of one height band share one z
+//! map, fitted to the union of both (whichever leg owns an edge gives its target).
+//!
+//! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
+
+use super::correspond::{ControlSet, Part, Status};
+use glam::DVec3;
+
+/// Half-width of the running median along a part, in slices (about 3 cm each side at
+/// the template's 1 cm slice step).
+const SMOOTH_HALF_WINDOW: usize = 3;
+/// Smallest span between a slice's two extreme controls that defines a scale, metres.
+const MIN_SPAN_M: f64 = 0.005;
+/// A slice of the candidate is scaled by at most this factor (or its inverse): the
+/// candidate was chosen to match the silhouettes, a larger scale is a broken mask.
+const MAX_SCALE: f64 = 1.25;
+
+/// Which station axis a chain maps.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Axis {
+    X,
+    Z,
+}
+
+impl Axis {
+    fn of(self, p: DVec3) -> f64 {
+        match self {
+            Axis::X => p.x,
+            Axis::Z => p.z,
+        }
+    }
+    fn statuses(self) -> (Status, Status) {
+        match self {
+            Axis::X => (Status::Left, Status::Right),
+            Axis::Z => (Status::Front, Status::Back),
+        }
+    }
+}
+
+/// One height band of a chain: the slices it maps (one, or both legs in the side view).
+#[derive(Debug, Clone)]
+struct Entry {
+    slices: Vec<u32>,
+}
+
+/// The slices of one part (or of both legs) along one axis, in band order.
+#[derive(Debug, Clone)]
+struct Chain {
+    axis: Axis,
+    entries: Vec<Entry>,
+}
+
+/// The chains of a control set, built once per subject.
+#[derive(Debug, Clone, Default)]
+pub struct SectionPlan {
+    chains: Vec<Chain>,
+    /// Per slice: (chain, entry) of its x map and of its z map, if it has dense targets.
+    slot: Vec<[Option<(u32, u32)>; 2]>,
+    /// Controls of each slice.
+    by_slice: Vec<Vec<u32>>,
+    /// Vertices that receive dense targets (members of trunk and leg slices).
+    pub vertices: Vec<u32>,
+}
+
+/// Per-entry delta map `d(x) = alpha + beta * x` and the entry's centre height.
+#[derive(Debug, Clone, Copy, Default)]
+struct Delta {
+    alpha: f64,
+    beta: f64,
+    y: f64,
+}
+
+/// Scratch of [`SectionPlan::targets`].
+#[derive(Debug, Clone, Default)]
+pub struct SectionScratch {
+    deltas: Vec<Vec<Delta>>,
+    raw_scale: Vec<Option<f64>>,
+    trend_y: Vec<f64>,
+    trend_d: Vec<f64>,
+    window: Vec<f64>,
+    centres: Vec<f64>,
+    scales: Vec<f64>,
+}
+
+fn dense_part(p: Part) -> bool {
+    matches!(p, Part::Torso | Part::LeftLeg | Part::RightLeg)
+}
+
+impl SectionPlan {
+    /// Builds the chains of `set` (trunk x and z, each leg's x, both legs' z).
+    pub fn new(set: &ControlSet) -> Self {
+        let n = set.slice_members.len();
+        let mut by_slice = vec![Vec::new(); n];
+        for (i, c) in set.controls.iter().enumerate() {
+            if let Some(b) = by_slice.get_mut(c.slice as usize) {
+                b.push(i as u32);
+            }
+        }
+        let mut plan = SectionPlan {
+            slot: vec![[None, None]; n],
+            by_slice,
+            ..Default::default()
+        };
+        let slices_of = |part: Part| -> Vec<u32> {
+            let mut v: Vec<u32> = (0..n as u32)
+                .filter(|&s| set.slice_part.get(s as usize) == Some(&part))
+                .collect();
+            v.sort_by_key(|&s| set.slice_band.get(s as usize).copied().unwrap_or(0));
+            v
+        };
+        let single = |slices: &[u32], axis: Axis| Chain {
+            axis,
+            entries: slices.iter().map(|&s| Entry { slices: vec![s] }).collect(),
+        };
+        let torso = slices_of(Part::Torso);
+        let left = slices_of(Part::LeftLeg);
+        let right = slices_of(Part::RightLeg);
+        let mut chains = vec![
+            single(&torso, Axis::X),
+            single(&torso, Axis::Z),
+            single(&left, Axis::X),
+            single(&right, Axis::X),
+        ];
+        // Both legs' z: one entry per band holding either leg's slice or both.
+        let mut legs: std::collections::BTreeMap<u32, Vec<u32>> = Default::default();
+        for &s in left.iter().chain(&right) {
+            let band = set.slice_band.get(s as usize).copied().unwrap_or(0);
+            legs.entry(band).or_default().push(s);
+        }
+        chains.push(Chain {
+            axis: Axis::Z,
+            entries: legs.into_values().map(|slices| Entry { slices }).collect(),
+        });
+        for (ci, chain) in chains.iter().enumerate() {
+            let k = match chain.axis {
+                Axis::X => 0,
+                Axis::Z => 1,
+            };
+            for (ei, e) in chain.entries.iter().enumerate() {
+                for &s in &e.slices {
+                    plan.slot[s as usize][k] = Some((ci as u32, ei as u32));
+                }
+            }
+        }
+        plan.chains = chains;
+        for (s, members) in set.slice_members.iter().enumerate() {
+            if set.slice_part.get(s).copied().is_some_and(dense_part) {
+                plan.vertices.extend_from_slice(members);
+            }
+        }
+        plan
+    }
+
+    /// Dense targets: writes into `out` (one entry per vertex of the mesh, resized) the
+    /// mapped position of every vertex of [`Self::vertices`]; other entries are None.
+    pub fn targets(
+        &self,
+        positions: &[DVec3],
+        set: &ControlSet,
+        targets: &[Option<DVec3>],
+        scratch: &mut SectionScratch,
+        out: &mut Vec<Option<DVec3>>,
+    ) {
+        out.clear();
+        out.resize(positions.len(), None);
+        scratch.deltas.resize(self.chains.len(), Vec::new());
+        for (ci, chain) in self.chains.iter().enumerate() {
+            let mut ds = std::mem::take(&mut scratch.deltas[ci]);
+            self.chain_deltas(chain, positions, set, targets, scratch, &mut ds);
+            scratch.deltas[ci] = ds;
+        }
+        for (s, members) in set.slice_members.iter().enumerate() {
+            let [sx, sz] = self.slot[s];
+            if sx.is_none() && sz.is_none() {
+                continue;
+            }
+            for &v in members {
+                let p = positions[v as usize];
+                let mut q = p;
+                if let Some((c, e)) = sx {
+                    q.x += self.blended(scratch, c, e, p.y, p.x);
+                }
+                if let Some((c, e)) = sz {
+                    q.z += self.blended(scratch, c, e, p.y, p.z);
+                }
+                out[v as usize] = Some(q);
+            }
+        }
+    }
+
+    /// Delta of coordinate `x` at height `y` in entry `e` of chain `c`, blended linearly
+    /// with the neighbouring entry on the side of `y`.
+    fn blended(&self, scratch: &SectionScratch, c: u32, e: u32, y: f64, x: f64) -> f64 {
+        let ds = &scratch.deltas[c as usize];
+        let e = e as usize;
+        let here = ds[e];
+        let at = |d: &Delta| d.alpha + d.beta * x;
+        let other = if y >= here.y {
+            e + 1
+        } else {
+            e.wrapping_sub(1)
+        };
+        match ds.get(other) {
+            Some(o) if (o.y - here.y).abs() > 1e-9 => {
+                let t = ((y - here.y) / (o.y - here.y)).clamp(0.0, 1.0);
+                at(&here) * (1.0 - t) + at(o) * t
+            }
+            _ => at(&here),
+        }
+    }
+
+    /// Fits the chain's maps into `out`, one [`Delta`] per entry.
+    fn chain_deltas(
+        &self,
+        chain: &Chain,
+        positions: &[DVec3],
+        set: &ControlSet,
+        targets: &[Option<DVec3>],
+        scratch: &mut SectionScratch,
+        out: &mut Vec<Delta>,
+    ) {
+        let m = chain.entries.len();
+        let (hi_status, lo_status) = chain.axis.statuses();
+        scratch.centres.clear();
+        scratch.raw_scale.clear();
+        // Per entry: the union's current extremes and the constraints (p, t) found.
+        let mut constraints: Vec<[Option<(f64, f64)>; 2]> = Vec::with_capacity(m);
+        let mut mids: Vec<f64> = Vec::with_capacity(m);
+        for e in &chain.entries {
+            let (mut hi, mut lo) = (f64::MIN, f64::MAX);
+            let mut c_hi: Option<(f64, f64)> = None;
+            let mut c_lo: Option<(f64, f64)> = None;
+            let mut ysum = 0.0;
+            let mut yn = 0usize;
+            for &s in &e.slices {
+                if let Some(members) = set.slice_members.get(s as usize) {
+                    for &v in members {
+                        ysum += positions[v as usize].y;
+                        yn += 1;
+                    }
+                }
+                for &ci in &self.by_slice[s as usize] {
+                    let c = &set.controls[ci as usize];
+                    let p = chain.axis.of(positions[c.vertex as usize]);
+                    let t = targets
+                        .get(ci as usize)
+                        .copied()
+                        .flatten()
+                        .map(|t| chain.axis.of(t));
+                    if c.status == hi_status {
+                        hi = hi.max(p);
+                        if let Some(t) = t {
+                            // Of two owners, the one reaching further.
+                            if c_hi.is_none_or(|(_, t0)| t > t0) {
+                                c_hi = Some((p, t));
+                            }
+                        }
+                    } else if c.status == lo_status {
+                        lo = lo.min(p);
+                        if let Some(t) = t {
+                            if c_lo.is_none_or(|(_, t0)| t < t0) {
+                                c_lo = Some((p, t));
+                            }
+                        }
+                    }
+                }
+            }
+            scratch
+                .centres
+                .push(if yn > 0 { ysum / yn as f64 } else { 0.0 });
+            let mid = if hi >= lo { 0.5 * (hi + lo) } else { 0.0 };
+            mids.push(mid);
+            constraints.push([c_hi, c_lo]);
+        }
+        // Occlusion only ever adds to a silhouette: drop edges that stand out beyond the
+        // part's smooth trend (an arm or a hand in front of the trunk in the side view).
+        for side in 0..2 {
+            let sign = if side == 0 { 1.0 } else { -1.0 };
+            scratch.trend_y.clear();
+            scratch.trend_d.clear();
+            for (e, c) in constraints.iter().enumerate() {
+                if let Some((p, t)) = c[side] {
+                    scratch.trend_y.push(scratch.centres[e]);
+                    scratch.trend_d.push(sign * (t - p));
+                }
+            }
+            let keep = outward_inliers(&scratch.trend_y, &scratch.trend_d);
+            if std::env::var_os("FITSTATION_DEBUG_SECTIONS").is_some() {
+                eprintln!(
+                    "trim {:?} side {side}: {:?}",
+                    chain.axis,
+                    scratch
+                        .trend_y
+                        .iter()
+                        .zip(&scratch.trend_d)
+                        .zip(&keep)
+                        .map(|((y, d), k)| format!(
+                            "{y:.2}:{:.1}{}",
+                            d * 1e3,
+                            if *k { "" } else { "x" }
+                        ))
+                        .collect::<Vec<_>>()
+                );
+            }
+            let mut k = 0;
+            for c in constraints.iter_mut() {
+                if c[side].is_some() {
+                    if !keep.get(k).copied().unwrap_or(true) {
+                        c[side] = None;
+                    }
+                    k += 1;
+                }
+            }
+        }
+        scratch
+            .raw_scale
+            .extend(constraints.iter().map(|c| match c {
+                [Some((ph, th)), Some((pl, tl))] if ph - pl > MIN_SPAN_M && th > tl => {
+                    Some(((th - tl) / (ph - pl)).clamp(1.0 / MAX_SCALE, MAX_SCALE))
+                }
+                _ => None,
+            }));
+        // Scales: running median of the observed ones, filled in from the nearest.
+        running_median(&scratch.raw_scale, &mut scratch.window, &mut scratch.scales);
+        fill(&mut scratch.scales, 1.0);
+        // Shifts (delta at the entry's mid) given the smoothed scale.
+        let mut shift: Vec<Option<f64>> = Vec::with_capacity(m);
+        for e in 0..m {
+            let s = scratch.scales[e];
+            let c = mids[e];
+            let mut sum = 0.0;
+            let mut n = 0;
+            for (p, t) in constraints[e].iter().flatten() {
+                sum += t - (c + s * (p - c));
+                n += 1;
+            }
+            shift.push((n > 0).then(|| sum / n as f64));
+        }
+        let mut smooth_shift = Vec::with_capacity(m);
+        running_median(&shift, &mut scratch.window, &mut smooth_shift);
+        fill(&mut smooth_shift, 0.0);
+        if std::env::var_os("FITSTATION_DEBUG_SECTIONS").is_some() {
+            for e in 0..m {
+                eprintln!(
+                    "chain {:?} e {e} y {:.3} raw {:?} s {:.3} shift {:?}/{:.4} cons {:?}",
+                    chain.axis,
+                    scratch.centres[e],
+                    scratch.raw_scale[e],
+                    scratch.scales[e],
+                    shift[e],
+                    smooth_shift[e],
+                    constraints[e]
+                );
+            }
+        }
+        // delta(x) = shift + (s - 1)(x - mid) = alpha + beta x.
+        out.clear();
+        for e in 0..m {
+            let beta = scratch.scales[e] - 1.0;
+            out.push(Delta {
+                alpha: smooth_shift[e] - beta * mids[e],
+                beta,
+                y: scratch.centres[e],
+            });
+        }
+    }
+}
+
+/// Fewest observed values a running-median window needs (fewer: filled in by
+/// interpolation between better-supported neighbours instead).
+const MIN_MEDIAN_SUPPORT: usize = 3;
+
+/// Running median over `SMOOTH_HALF_WINDOW` of the present values; NaN where a window
+/// has fewer than [`MIN_MEDIAN_SUPPORT`].
+fn running_median(values: &[Option<f64>], window: &mut Vec<f64>, out: &mut Vec<f64>) {
+    out.clear();
+    let m = values.len();
+    for i in 0..m {
+        window.clear();
+        let lo = i.saturating_sub(SMOOTH_HALF_WINDOW);
+        let hi = (i + SMOOTH_HALF_WINDOW + 1).min(m);
+        window.extend(values[lo..hi].iter().flatten());
+        if window.len() < MIN_MEDIAN_SUPPORT {
+            out.push(f64::NAN);
+        } else {
+            window.sort_by(|a, b| a.total_cmp(b));
+            let k = window.len();
+            out.push(if k % 2 == 1 {
+                window[k / 2]
+            } else {
+                0.5 * (window[k / 2 - 1] + window[k / 2])
+            });
+        }
+    }
+}
+
+/// Fills NaN entries of `v` by linear interpolation between the nearest finite ones
+/// (constant beyond the ends; `default` when none is finite).
+fn fill(v: &mut [f64], default: f64) {
+    let known: Vec<usize> = (0..v.len()).filter(|&i| v[i].is_finite()).collect();
+    if known.is_empty() {
+        v.iter_mut().for_each(|x| *x = default);
+        return;
+    }
+    for i in 0..v.len() {
+        if v[i].is_finite() {
+            continue;
+        }
+        let next = known.partition_point(|&k| k < i);
+        v[i] = match (next.checked_sub(1).map(|j| known[j]), known.get(next)) {
+            (Some(a), Some(&b)) => {
+                let t = (i - a) as f64 / (b - a) as f64;
+                v[a] * (1.0 - t) + v[b] * t
+            }
+            (Some(a), None) => v[a],
+            (None, Some(&b)) => v[b],
+            (None, None) => default,
+        };
+    }
+}
+
+/// Outward residual (metres) beyond which an edge is taken as another part's.
+const OUTWARD_TOLERANCE_M: f64 = 0.010;
+/// Inward residual beyond which an edge is dropped (a notch or hole in the mask).
+const INWARD_TOLERANCE_M: f64 = 0.03;
+/// Rounds of the trimmed trend fit.
+const TREND_ROUNDS: usize = 5;
+
+/// Which of the outward displacements `d` (at heights `y`) agree with their smooth trend:
+/// a quadratic in height fitted by trimmed least squares, trimming mainly outward (an
+/// occluding part can only push an edge out). Returns one flag per point.
+fn outward_inliers(y: &[f64], d: &[f64]) -> Vec<bool> {
+    let n = y.len();
+    let mut keep = vec![true; n];
+    if n < 6 {
+        return keep;
+    }
+    let y0 = y.iter().sum::<f64>() / n as f64;
+    for _ in 0..TREND_ROUNDS {
+        // Normal equations of d ~ a + b (y - y0) + c (y - y0)^2 over the kept points.
+        let mut ata = [[0.0f64; 3]; 3];
+        let mut atb = [0.0f64; 3];
+        let mut m = 0;
+        for i in (0..n).filter(|&i| keep[i]) {
+            let u = y[i] - y0;
+            let row = [1.0, u, u * u];
+            for r in 0..3 {
+                atb[r] += row[r] * d[i];
+                for c in 0..3 {
+                    ata[r][c] += row[r] * row[c];
+                }
+            }
+            m += 1;
+        }
+        if m < 4 {
+            break;
+        }
+        for (r, row) in ata.iter_mut().enumerate() {
+            row[r] += 1e-12;
+        }
+        let Some(coef) = super::solve_small(ata, atb) else {
+            break;
+        };
+        let fit = |yy: f64| {
+            let u = yy - y0;
+            coef[0] + coef[1] * u + coef[2] * u * u
+        };
+        let next: Vec<bool> = (0..n)
+            .map(|i| {
+                let r = d[i] - fit(y[i]);
+                r <= OUTWARD_TOLERANCE_M && r >= -INWARD_TOLERANCE_M
+            })
+            .collect();
+        if next == keep {
+            break;
+        }
+        keep = next;
+    }
+    keep
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::fit::correspond::{select_controls, Variant};
+    use crate::mesh::shapes;
+
+    #[test]
+    fn trimming_drops_a_contiguous_outward_bump_only() {
+        // A smooth displacement profile with a 15-sample run pushed 5 cm out (an arm over
+        // the trunk) and one sample 1.5 cm in (still within the inward tolerance).
+        let y: Vec<f64> = (0..60).map(|i| 0.8 + 0.01 * i as f64).collect();
+        let mut d: Vec<f64> = y
+            .iter()
+            .map(|y| 0.004 * (y - 1.0) + 0.01 * (y - 1.0).powi(2))
+            .collect();
+        for v in &mut d[20..35] {
+            *v += 0.05;
+        }
+        d[50] -= 0.015;
+        let keep = outward_inliers(&y, &d);
+        for (i, k) in keep.iter().enumerate() {
+            assert_eq!(*k, !(20..35).contains(&i), "sample {i}");
+        }
+    }
+
+    #[test]
+    fn fill_interpolates_between_and_holds_at_the_ends() {
+        let mut v = vec![f64::NAN, 1.0, f64::NAN, f64::NAN, 4.0, f64::NAN];
+        fill(&mut v, 0.0);
+        assert_eq!(v, vec![1.0, 1.0, 2.0, 3.0, 4.0, 4.0]);
+        let mut none = vec![f64::NAN; 3];
+        fill(&mut none, 7.0);
+        assert_eq!(none, vec![7.0; 3]);
+    }
+
+    #[test]
+    fn sections_take_every_vertex_to_the_scaled_section() {
+        // Template: an elliptic cylinder 0.30 x 0.20 m; targets of its extreme controls as
+        // if the subject were 0.33 x 0.18 m and 1 cm further forward. Every vertex must
+        // land on the scaled, shifted ellipse (the map is affine per axis).
+        let mesh = shapes::elliptic_cylinder(0.15, 0.10, 1.0, 48, 40);
+        let calib = crate::camera::StationCalibration::nominal(640, 480, 600.0, 3.0, 0.5, 0.5);
+        let labels = vec![Part::Torso; mesh.vertex_count()];
+        let excluded = vec![false; mesh.vertex_count()];
+        let set = select_controls(
+            &mesh,
+            &labels,
+            &excluded,
+            0.05,
+            Variant::SliceExtremes,
+            &calib.front,
+            &calib.side,
+        );
+        let (sx, sz, dz) = (1.1, 0.9, 0.01);
+        let targets: Vec<Option<DVec3>> = set
+            .controls
+            .iter()
+            .map(|c| {
+                let p = mesh.positions[c.vertex as usize];
+                Some(DVec3::new(p.x * sx, p.y, p.z * sz + dz))
+            })
+            .collect();
+        let plan = SectionPlan::new(&set);
+        let mut scratch = SectionScratch::default();
+        let mut out = Vec::new();
+        plan.targets(&mesh.positions, &set, &targets, &mut scratch, &mut out);
+        let mut n = 0;
+        for (v, t) in out.iter().enumerate() {
+            let Some(t) = t else { continue };
+            let p = mesh.positions[v];
+            assert!((t.x - p.x * sx).abs() < 1e-9, "x {} vs {}", t.x, p.x * sx);
+            assert!(
+                (t.z - (p.z * sz + dz)).abs() < 1e-9,
+                "z {} vs {}",
+                t.z,
+                p.z * sz + dz
+            );
+            assert_eq!(t.y, p.y);
+            n += 1;
+        }
+        assert!(
+            n > mesh.vertex_count() * 9 / 10,
+            "{n} of {}",
+            mesh.vertex_count()
+        );
+    }
+}
