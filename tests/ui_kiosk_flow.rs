@@ -29,6 +29,7 @@ fn every_kiosk_state_is_reached_replaying_the_demo_recording() {
         countdown_s: 1.0,
         idle_timeout_s: 2.0,
         result_display_s: 30.0,
+        settle_timeout_s: 1.0,
     };
     let opts = StationOptions::default();
     let mut source = SessionSource::open(std::path::Path::new(rec), &cfg, opts.backdrop_frames)
@@ -86,6 +87,7 @@ fn every_kiosk_state_is_reached_replaying_the_demo_recording() {
         (h.time_s, r)
     };
     assert!(result.time_s - hold_start >= cfg.countdown_s);
+    assert!(result.time_s - hold_start <= cfg.countdown_s + cfg.settle_timeout_s + 0.1);
     let FlowState::Result { card, .. } = &result.state else {
         unreachable!()
     };

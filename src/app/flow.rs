@@ -21,6 +21,10 @@ pub struct FlowConfig {
     pub idle_timeout_s: f64,
     /// The result card stays at most this long, then is cleared.
     pub result_display_s: f64,
+    /// After the countdown, the longest wait for the measurements to settle; then the
+    /// card shows the current (median) values with their spread instead of keeping the
+    /// shopper holding still for ever.
+    pub settle_timeout_s: f64,
 }
 
 /// Default countdown: long enough to read, short enough to hold an A-pose.
@@ -29,6 +33,8 @@ pub const DEFAULT_COUNTDOWN_S: f64 = 3.0;
 pub const DEFAULT_IDLE_TIMEOUT_S: f64 = 10.0;
 /// Default longest time a result card is shown.
 pub const DEFAULT_RESULT_DISPLAY_S: f64 = 45.0;
+/// Default longest wait for settled measurements after the countdown.
+pub const DEFAULT_SETTLE_TIMEOUT_S: f64 = 4.0;
 
 impl Default for FlowConfig {
     fn default() -> Self {
@@ -36,6 +42,7 @@ impl Default for FlowConfig {
             countdown_s: DEFAULT_COUNTDOWN_S,
             idle_timeout_s: DEFAULT_IDLE_TIMEOUT_S,
             result_display_s: DEFAULT_RESULT_DISPLAY_S,
+            settle_timeout_s: DEFAULT_SETTLE_TIMEOUT_S,
         }
     }
 }
@@ -60,6 +67,9 @@ pub enum FlowState {
 pub struct ResultCard {
     pub measurements: Vec<MeasurementValue>,
     pub frame_index: u64,
+    /// The measurements had settled (false: shown after the settle timeout, with
+    /// their spread).
+    pub settled: bool,
 }
 
 /// Something the caller must do after a transition.
@@ -163,11 +173,18 @@ impl KioskFlow {
             },
             (FlowState::HoldStill { started_s }, Phase::Fitting | Phase::Settled) => {
                 let started_s = *started_s;
-                if input.phase == Phase::Settled && now_s - started_s >= self.config.countdown_s {
+                let held = now_s - started_s;
+                let settled = input.phase == Phase::Settled;
+                let timed_out = held >= self.config.countdown_s + self.config.settle_timeout_s;
+                if held >= self.config.countdown_s
+                    && (settled || timed_out)
+                    && !input.measurements.is_empty()
+                {
                     FlowState::Result {
                         card: ResultCard {
                             measurements: input.measurements.to_vec(),
                             frame_index: input.frame_index,
+                            settled,
                         },
                         shown_s: now_s,
                     }
@@ -222,6 +239,7 @@ mod tests {
         countdown_s: 3.0,
         idle_timeout_s: 10.0,
         result_display_s: 45.0,
+        settle_timeout_s: 4.0,
     };
 
     fn meas(v: f64) -> Vec<MeasurementValue> {
@@ -344,7 +362,29 @@ mod tests {
         match f.state() {
             FlowState::Result { card, shown_s } => {
                 assert_eq!(card.measurements, meas(1001.0));
+                assert!(card.settled);
                 assert_eq!(*shown_s, 6.0);
+            }
+            s => panic!("expected the result card, got {s:?}"),
+        }
+    }
+
+    #[test]
+    fn unsettled_measurements_give_a_card_after_the_settle_timeout() {
+        let mut f = KioskFlow::new(CFG);
+        feed(&mut f, Phase::WaitingForSubject, &[], &[], 1.0);
+        feed(&mut f, Phase::Fitting, &[], &meas(900.0), 2.0);
+        let limit = 2.0 + CFG.countdown_s + CFG.settle_timeout_s;
+        feed(&mut f, Phase::Fitting, &[], &meas(905.0), limit - 0.1);
+        assert_eq!(f.state(), &FlowState::HoldStill { started_s: 2.0 });
+        // No measurement yet: still holding, even after the timeout.
+        feed(&mut f, Phase::Fitting, &[], &[], limit);
+        assert_eq!(f.state(), &FlowState::HoldStill { started_s: 2.0 });
+        feed(&mut f, Phase::Fitting, &[], &meas(907.0), limit + 0.1);
+        match f.state() {
+            FlowState::Result { card, .. } => {
+                assert!(!card.settled);
+                assert_eq!(card.measurements, meas(907.0));
             }
             s => panic!("expected the result card, got {s:?}"),
         }

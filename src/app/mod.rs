@@ -652,11 +652,13 @@ impl StationApp {
             egui::Grid::new("result_card").striped(true).show(ui, |ui| {
                 for m in &card.measurements {
                     ui.label(pretty_name(&m.name));
-                    ui.label(
-                        RichText::new(format!("{:.0} mm", m.value_mm))
-                            .size(18.0)
-                            .strong(),
-                    );
+                    // Shown after the settle timeout: the spread goes with the value.
+                    let text = if card.settled {
+                        format!("{:.0} mm", m.value_mm)
+                    } else {
+                        format!("{:.0} ±{:.0} mm", m.value_mm, m.stability_mm)
+                    };
+                    ui.label(RichText::new(text).size(18.0).strong());
                     ui.end_row();
                 }
             });

@@ -38,12 +38,12 @@ pub const SUBJECT_FRACTION: f64 = 0.002;
 /// pixel, as a fraction of the frame height.
 pub const CUT_OFF_FRACTION: f64 = 0.06;
 /// Seconds of the empty scene after learning, of pose guidance, of the result card on
-/// screen, and beyond the countdown and the idle timeout (margins for the fit to settle
-/// and the timeout to pass).
+/// screen, and beyond the idle timeout (margin for the timeout to pass).
 pub const EMPTY_S: f64 = 1.0;
 pub const GUIDANCE_S: f64 = 1.5;
 pub const RESULT_S: f64 = 2.0;
-pub const SETTLE_MARGIN_S: f64 = 2.0;
+/// Extra hold beyond the countdown and the settle wait (frames in flight).
+pub const HOLD_MARGIN_S: f64 = 0.5;
 pub const LEAVE_MARGIN_S: f64 = 1.5;
 
 /// Why a session cannot be scripted from a recording.
@@ -107,7 +107,10 @@ pub fn script(
         },
         Segment {
             name: "hold still",
-            shots: vec![Shot::Subject(last); n(flow.countdown_s + SETTLE_MARGIN_S)],
+            shots: vec![
+                Shot::Subject(last);
+                n(flow.countdown_s + flow.settle_timeout_s + HOLD_MARGIN_S)
+            ],
         },
         Segment {
             name: "look at the result",
@@ -428,6 +431,7 @@ mod tests {
             countdown_s: 2.0,
             idle_timeout_s: 4.0,
             result_display_s: 30.0,
+            settle_timeout_s: 1.5,
         };
         let s = script(10.0, &cfg, 5, 8, 6);
         let names: Vec<&str> = s.iter().map(|s| s.name).collect();
@@ -437,6 +441,8 @@ mod tests {
         assert!(s[0].shots.iter().all(|x| matches!(x, Shot::Empty(_))));
         let hold = s.iter().find(|x| x.name == "hold still").expect("hold");
         assert_eq!(hold.shots.len(), 40);
+        // Long enough for the settle timeout: a card comes even if the fit jitters.
+        assert!(hold.shots.len() as f64 / 10.0 > cfg.countdown_s + cfg.settle_timeout_s);
         assert!(hold.shots.iter().all(|x| *x == Shot::Subject(5)));
         let leave = s.iter().find(|x| x.name == "leave").expect("leave");
         assert_eq!(leave.shots.len(), 55);
