@@ -420,18 +420,48 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     let mut fast =
         MvcDeformer::from_encoding(&mesh, encoding.clone(), DecoderKind::FastGaussNewton, opts)?;
     let new_ms = ms(t);
-    let mut factor_times = Vec::new();
-    for _ in 0..repeats.min(3) {
-        let t = Instant::now();
-        fast.set_controls(&prob.controls)?;
-        factor_times.push(ms(t));
-    }
+    let t = Instant::now();
+    fast.set_controls(&prob.controls)?;
+    let first_controls_ms = ms(t);
+    let t = Instant::now();
+    fast.set_controls(&prob.controls)?;
+    let same_controls_ms = ms(t);
     println!(
-        "fast setup:          {:8.2} ms symbolic analysis (once per mesh), {:.2} ms numeric factor per control set ({} factor values)",
+        "fast setup:          {:8.2} ms new, {:.2} ms first control set (symbolic + numeric, {} factor values), {:.3} ms same set again",
         new_ms,
-        median_ms(factor_times),
-        fast.factor_len()
+        first_controls_ms,
+        fast.factor_len(),
+        same_controls_ms
     );
+    // The other strategy: one full-size analysis kept across control sets.
+    {
+        let full_opts = DecodeOptions {
+            symbolic: super::SymbolicReuse::AcrossControlSets,
+            ..opts
+        };
+        let t = Instant::now();
+        let mut full = MvcDeformer::from_encoding(
+            &mesh,
+            encoding.clone(),
+            DecoderKind::FastGaussNewton,
+            full_opts,
+        )?;
+        let full_new_ms = ms(t);
+        let t = Instant::now();
+        full.set_controls(&prob.controls)?;
+        let full_factor_ms = ms(t);
+        let mut pos = mesh.positions.clone();
+        let t = Instant::now();
+        let r = full.solve(&prob.targets, &mut pos)?;
+        println!(
+            "  (full-size variant: {:.2} ms analysis once per mesh, {:.2} ms numeric factor per control set, {} factor values, decode from rest {:.2} ms in {} steps)",
+            full_new_ms,
+            full_factor_ms,
+            full.factor_len(),
+            ms(t),
+            r.iterations
+        );
+    }
     // Each repeat is a two-frame sequence: a decode from the rest shape with a fresh
     // history, then a warm refit after the targets moved a few millimetres.
     let mut fast_times = Vec::new();

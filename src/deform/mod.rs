@@ -24,12 +24,14 @@
 //!   order), repeated.
 //! - [`DecoderKind::FastGaussNewton`]: weights frozen, the normal offsets `s n` taken from
 //!   the current positions, the sparse least-squares system `min |L x - s n|^2` (rows of
-//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L`. The
-//!   symbolic analysis is done once per mesh on the pattern with every row present;
-//!   `set_controls` only refactors numerically (control vertices become identity rows,
-//!   their coupling moves to the right-hand side), so changing the control set keeps the
-//!   analysis; each Gauss-Newton step and each new frame only re-solves with a new
-//!   right-hand side (faer, `Par::Seq`).
+//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L` (faer,
+//!   `Par::Seq`); each Gauss-Newton step and each new frame only re-solves with a new
+//!   right-hand side. Two ways to share the sparse analysis ([`SymbolicReuse`]):
+//!   eliminate the control vertices (smaller factor, analysis per control set, the
+//!   default: a template's control set stays while the targets move), or keep one
+//!   analysis of the full-size pattern for every control set (controls become identity
+//!   rows, their coupling moves to the right-hand side; `set_controls` is a numeric
+//!   refactor only).
 //!
 //! Why Anderson acceleration: with frozen normal offsets the step `x -> G(x)` ignores how
 //! the offsets turn and stretch with the surface. Where a thin part is held on one side
@@ -102,6 +104,22 @@ pub struct DecodeOptions {
     /// are eliminated from the unknowns, like the paper-style loop does. The paper-style
     /// loop always uses hard constraints.
     pub constraint_weight: f64,
+    /// How the fast decoder's sparse analysis is shared (see [`SymbolicReuse`]).
+    pub symbolic: SymbolicReuse,
+}
+
+/// Sharing of the fast decoder's symbolic Cholesky analysis.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SymbolicReuse {
+    /// Control vertices are eliminated from the unknowns: a smaller factor and faster
+    /// solves; the analysis is redone only when the control set changes (it does not
+    /// from frame to frame: only the targets move). The default.
+    #[default]
+    PerControlSet,
+    /// One analysis of the full-size system per mesh, kept for every control set
+    /// (controls become identity rows): `set_controls` is a numeric refactor only, each
+    /// solve pays for the full-size factor. Always used with weighted constraints.
+    AcrossControlSets,
 }
 
 /// Default convergence tolerance, metres (0.1 mm).
@@ -115,6 +133,7 @@ impl Default for DecodeOptions {
             max_move_m: DEFAULT_MAX_MOVE_M,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             constraint_weight: f64::INFINITY,
+            symbolic: SymbolicReuse::default(),
         }
     }
 }

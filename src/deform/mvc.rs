@@ -6,12 +6,12 @@
 use super::anderson::Anderson;
 use super::encoding::MeanValueEncoding;
 use super::solver::{
-    component_anchor_candidates, components, fixed_with_anchors, Constraints, NormalEquations,
-    RowSystem,
+    component_anchor_candidates, components, fixed_with_anchors, Constraints, Engine,
+    NormalEquations, ReducedSystem, RowSystem,
 };
 use super::{
     check_solve_inputs, control_mask, ConvergenceMonitor, DecodeOptions, DecodeReport, DecoderKind,
-    DeformError,
+    DeformError, SymbolicReuse,
 };
 use crate::mesh::TriMesh;
 use glam::DVec3;
@@ -29,9 +29,11 @@ pub struct MvcDeformer {
     fixed: Vec<bool>,
     anchors: Vec<u32>,
     /// Fast solver only.
-    system: Option<NormalEquations>,
+    system: Option<Engine>,
     /// Per-vertex right-hand side (normal offsets), scratch.
     delta: Vec<DVec3>,
+    /// The engine has not been factored yet (no control set given so far).
+    needs_factor: bool,
     /// Fast solver: the plain step's result, and the acceleration history.
     step_out: Vec<DVec3>,
     anderson: Anderson,
@@ -83,10 +85,16 @@ impl MvcDeformer {
         let component = components(encoding.rings());
         let anchor_candidates = component_anchor_candidates(&component, &rest.positions);
         let system = match kind {
-            DecoderKind::FastGaussNewton => Some(NormalEquations::new(RowSystem::from_rings(
-                encoding.rings(),
-                |v| encoding.weights(v),
-            ))?),
+            DecoderKind::FastGaussNewton => {
+                let rows = RowSystem::from_rings(encoding.rings(), |v| encoding.weights(v));
+                let hard = !opts.constraint_weight.is_finite();
+                Some(match opts.symbolic {
+                    SymbolicReuse::PerControlSet if hard => {
+                        Engine::Reduced(ReducedSystem::new(rows))
+                    }
+                    _ => Engine::Full(NormalEquations::new(rows)?),
+                })
+            }
             DecoderKind::PaperIterative => None,
         };
         let mut d = MvcDeformer {
@@ -101,6 +109,7 @@ impl MvcDeformer {
             anchors: Vec::new(),
             system,
             delta: vec![DVec3::ZERO; n],
+            needs_factor: false,
             step_out: vec![
                 DVec3::ZERO;
                 if kind == DecoderKind::FastGaussNewton {
@@ -115,7 +124,11 @@ impl MvcDeformer {
                 0
             }),
         };
-        d.set_controls(&[])?;
+        match d.system {
+            // Analysed when the first control set arrives (or at the first solve).
+            Some(Engine::Reduced(_)) => d.needs_factor = true,
+            _ => d.set_controls(&[])?,
+        }
         Ok(d)
     }
 
@@ -146,6 +159,7 @@ impl MvcDeformer {
             };
             sys.factor(&self.fixed, mode)?;
         }
+        self.needs_factor = false;
         Ok(())
     }
 
@@ -161,6 +175,9 @@ impl MvcDeformer {
     ) -> Result<DecodeReport, DeformError> {
         let n = self.encoding.vertex_count();
         check_solve_inputs(targets, self.controls.len(), positions.len(), n)?;
+        if self.needs_factor {
+            self.set_controls(&[])?;
+        }
         // Control vertices jump to their targets (both decoders start there).
         for (&c, t) in self.controls.iter().zip(targets) {
             positions[c as usize] = *t;
@@ -229,7 +246,7 @@ impl MvcDeformer {
         let Some(sys) = &mut self.system else {
             return f64::NAN;
         };
-        if sys.mode != Constraints::Hard {
+        if sys.is_soft() {
             // Weighted constraints read their targets from the positions.
             for (&c, t) in self.controls.iter().zip(targets) {
                 positions[c as usize] = *t;
