@@ -32,6 +32,9 @@ pub struct MvcDeformer {
     system: Option<Engine>,
     /// Per-vertex right-hand side (normal offsets), scratch.
     delta: Vec<DVec3>,
+    /// Vertices the solve moves (the free ones; all with weighted constraints), for the
+    /// acceleration.
+    free: Vec<u32>,
     /// The engine has not been factored yet (no control set given so far).
     needs_factor: bool,
     /// Fast solver: the plain step's result, and the acceleration history.
@@ -109,6 +112,7 @@ impl MvcDeformer {
             anchors: Vec::new(),
             system,
             delta: vec![DVec3::ZERO; n],
+            free: Vec::new(),
             needs_factor: false,
             step_out: vec![
                 DVec3::ZERO;
@@ -150,7 +154,13 @@ impl MvcDeformer {
             &mut self.fixed,
             &mut self.anchors,
         );
-        self.anderson.reset();
+        let soft = self.opts.constraint_weight.is_finite();
+        self.free.clear();
+        self.free
+            .extend((0..self.fixed.len() as u32).filter(|&v| soft || !self.fixed[v as usize]));
+        if self.kind == DecoderKind::FastGaussNewton {
+            self.anderson.resize(self.free.len());
+        }
         if let Some(sys) = &mut self.system {
             let mode = if self.opts.constraint_weight.is_finite() {
                 Constraints::Weighted(self.opts.constraint_weight)
@@ -257,7 +267,8 @@ impl MvcDeformer {
         if !plain.is_finite() {
             return plain;
         }
-        let (moved, fixed_point_residual) = self.anderson.step(positions, &self.step_out);
+        let (moved, fixed_point_residual) =
+            self.anderson.step(positions, &self.step_out, &self.free);
         moved.max(fixed_point_residual)
     }
 
