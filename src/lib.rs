@@ -8,6 +8,21 @@
 //! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
 //! wires them together with capture and the screen.
 
+pub mod app;
+pub mod body;
+pub mod calibrate;
 pub mod camera;
+pub mod capture;
+pub mod contour;
 pub mod deform;
+pub mod eval;
+pub mod fit;
+pub mod imgproc;
+pub mod landmarks;
+pub mod measure;
 pub mod mesh;
+pub mod pipeline;
+pub mod recording;
+pub mod segment;
+pub mod station;
+pub mod synth;

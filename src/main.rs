@@ -1,8 +1,13 @@
-//! The `fitstation` command line.
+//! The `fitstation` command line. Each subcommand's arguments and logic live in its
+//! module; this file only dispatches.
 use clap::{Parser, Subcommand};
 
 #[derive(Parser)]
-#[command(name = "fitstation", version, about = "Two-camera capture-and-fit body measurement station")]
+#[command(
+    name = "fitstation",
+    version,
+    about = "Two-camera capture-and-fit body measurement station"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -10,13 +15,35 @@ struct Cli {
 
 #[derive(Subcommand)]
 enum Command {
-    /// Print the version.
-    Version,
+    /// Replay a recording through the station; write avatar.obj and report.json.
+    Replay(fitstation::station::cli::ReplayArgs),
+    /// Fit one front and one side still; write avatar.obj and report.json.
+    Fit(fitstation::station::cli::FitArgs),
+    /// Landmarks, joints and frame verdicts from one front and one side image.
+    Landmarks(fitstation::landmarks::cli::LandmarksArgs),
+    /// Measure a body mesh: stature and tape girths (ISO 8559-1).
+    Measure(fitstation::measure::MeasureArgs),
+    /// Body templates and the shape library (import, prepare, bodies).
+    Templates(fitstation::body::TemplatesArgs),
+    /// Render a synthetic two-camera recording with its ground truth beside it.
+    Synth(fitstation::synth::SynthArgs),
+    /// Render a deterministic evaluation set of synthetic subjects.
+    SynthSet(fitstation::synth::SynthSetArgs),
+    /// Score fits of recordings against their ground truth.
+    Eval(fitstation::station::cli::EvalCmd),
     /// Time a pipeline stage on realistic inputs.
     Bench {
         #[command(subcommand)]
         what: BenchCommand,
     },
+    /// Print the version.
+    Version,
+    /// Calibrate the two cameras (lens, then position at the mark) or check a station.yaml.
+    Calibrate(fitstation::calibrate::cli::CalibrateArgs),
+    /// The station screen on a synthetic demo station (no cameras needed).
+    DemoUi(fitstation::app::DemoUiArgs),
+    /// The station screen on two live cameras (build with --features camera).
+    Live(fitstation::app::LiveArgs),
 }
 
 #[derive(Subcommand)]
@@ -28,10 +55,21 @@ enum BenchCommand {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Replay(args) => fitstation::station::cli::run_replay(&args)?,
+        Command::Fit(args) => fitstation::station::cli::run_fit(&args)?,
+        Command::Landmarks(args) => fitstation::landmarks::cli::run(args)?,
+        Command::Measure(args) => fitstation::measure::run(args)?,
+        Command::Templates(args) => fitstation::body::run(args)?,
+        Command::Synth(args) => fitstation::synth::run(args)?,
+        Command::SynthSet(args) => fitstation::synth::run_set(args)?,
+        Command::Eval(args) => fitstation::station::cli::run_eval(&args)?,
         Command::Bench {
             what: BenchCommand::Deform(args),
         } => fitstation::deform::bench::run(args)?,
+        Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
+        Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,
+        Command::DemoUi(args) => fitstation::app::run_demo_cli(args)?,
+        Command::Live(args) => fitstation::app::run_live_cli(args)?,
     }
     Ok(())
 }

@@ -13,9 +13,16 @@ use std::path::{Path, PathBuf};
 #[derive(Debug, thiserror::Error)]
 pub enum MeshIoError {
     #[error("{file}: {source}")]
-    Io { file: PathBuf, source: std::io::Error },
+    Io {
+        file: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{file}:{line}: {msg}")]
-    Parse { file: PathBuf, line: usize, msg: String },
+    Parse {
+        file: PathBuf,
+        line: usize,
+        msg: String,
+    },
     #[error("{file}: {msg}")]
     Invalid { file: PathBuf, msg: String },
 }
@@ -24,12 +31,20 @@ pub enum MeshIoError {
 const MAX_ELEMENTS: usize = 50_000_000;
 
 fn perr(file: &Path, line: usize, msg: impl Into<String>) -> MeshIoError {
-    MeshIoError::Parse { file: file.to_path_buf(), line, msg: msg.into() }
+    MeshIoError::Parse {
+        file: file.to_path_buf(),
+        line,
+        msg: msg.into(),
+    }
 }
 
 /// Reads an OBJ or PLY file by its extension.
 pub fn read_mesh(path: &Path) -> Result<TriMesh, MeshIoError> {
-    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()) {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+    {
         Some(e) if e == "obj" => read_obj(path, None),
         Some(e) if e == "ply" => read_ply(path),
         _ => Err(MeshIoError::Invalid {
@@ -41,7 +56,11 @@ pub fn read_mesh(path: &Path) -> Result<TriMesh, MeshIoError> {
 
 /// Writes OBJ, PLY or GLB by the extension of `path`.
 pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
-    match path.extension().and_then(|e| e.to_str()).map(|e| e.to_ascii_lowercase()) {
+    match path
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(|e| e.to_ascii_lowercase())
+    {
         Some(e) if e == "obj" => write_obj(path, mesh),
         Some(e) if e == "ply" => write_ply(path, mesh),
         Some(e) if e == "glb" => write_glb(path, mesh),
@@ -53,7 +72,10 @@ pub fn write_mesh(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
 }
 
 fn open(path: &Path) -> Result<std::fs::File, MeshIoError> {
-    std::fs::File::open(path).map_err(|source| MeshIoError::Io { file: path.to_path_buf(), source })
+    std::fs::File::open(path).map_err(|source| MeshIoError::Io {
+        file: path.to_path_buf(),
+        source,
+    })
 }
 
 /// Reads an OBJ file. With `group = Some(name)`, only faces under `g name` are kept
@@ -64,7 +86,11 @@ pub fn read_obj(path: &Path, group: Option<&str>) -> Result<TriMesh, MeshIoError
 }
 
 /// Parses OBJ text from any reader; `path` only names the source in errors.
-pub fn parse_obj(reader: impl BufRead, path: &Path, group: Option<&str>) -> Result<TriMesh, MeshIoError> {
+pub fn parse_obj(
+    reader: impl BufRead,
+    path: &Path,
+    group: Option<&str>,
+) -> Result<TriMesh, MeshIoError> {
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
     let mut in_group = group.is_none();
@@ -77,8 +103,12 @@ pub fn parse_obj(reader: impl BufRead, path: &Path, group: Option<&str>) -> Resu
             Some("v") => {
                 let mut c = [0.0f64; 3];
                 for (k, slot) in c.iter_mut().enumerate() {
-                    let tok = it.next().ok_or_else(|| perr(path, ln, format!("vertex has {k} coordinates, needs 3")))?;
-                    *slot = tok.parse().map_err(|_| perr(path, ln, format!("bad number '{tok}'")))?;
+                    let tok = it.next().ok_or_else(|| {
+                        perr(path, ln, format!("vertex has {k} coordinates, needs 3"))
+                    })?;
+                    *slot = tok
+                        .parse()
+                        .map_err(|_| perr(path, ln, format!("bad number '{tok}'")))?;
                     if !slot.is_finite() {
                         return Err(perr(path, ln, "vertex coordinate is not finite"));
                     }
@@ -100,11 +130,23 @@ pub fn parse_obj(reader: impl BufRead, path: &Path, group: Option<&str>) -> Resu
                 face.clear();
                 for tok in it {
                     let vtok = tok.split('/').next().unwrap_or("");
-                    let idx: i64 = vtok.parse().map_err(|_| perr(path, ln, format!("bad face index '{tok}'")))?;
+                    let idx: i64 = vtok
+                        .parse()
+                        .map_err(|_| perr(path, ln, format!("bad face index '{tok}'")))?;
                     let n = positions.len() as i64;
-                    let abs = if idx > 0 { idx - 1 } else if idx < 0 { n + idx } else { -1 };
+                    let abs = if idx > 0 {
+                        idx - 1
+                    } else if idx < 0 {
+                        n + idx
+                    } else {
+                        -1
+                    };
                     if abs < 0 || abs >= n {
-                        return Err(perr(path, ln, format!("face index {idx} out of range (have {n} vertices)")));
+                        return Err(perr(
+                            path,
+                            ln,
+                            format!("face index {idx} out of range (have {n} vertices)"),
+                        ));
                     }
                     face.push(abs as u32);
                 }
@@ -124,13 +166,23 @@ pub fn parse_obj(reader: impl BufRead, path: &Path, group: Option<&str>) -> Resu
     finish(path, positions, triangles)
 }
 
-fn finish(path: &Path, positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Result<TriMesh, MeshIoError> {
+fn finish(
+    path: &Path,
+    positions: Vec<DVec3>,
+    triangles: Vec<[u32; 3]>,
+) -> Result<TriMesh, MeshIoError> {
     if triangles.is_empty() {
-        return Err(MeshIoError::Invalid { file: path.to_path_buf(), msg: "no faces".into() });
+        return Err(MeshIoError::Invalid {
+            file: path.to_path_buf(),
+            msg: "no faces".into(),
+        });
     }
     let mut m = TriMesh::new(positions, triangles);
     m.compact();
-    m.validate().map_err(|msg| MeshIoError::Invalid { file: path.to_path_buf(), msg })?;
+    m.validate().map_err(|msg| MeshIoError::Invalid {
+        file: path.to_path_buf(),
+        msg,
+    })?;
     Ok(m)
 }
 
@@ -196,7 +248,10 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, MeshIoError> {
     let mut bytes = Vec::new();
     open(path)?
         .read_to_end(&mut bytes)
-        .map_err(|source| MeshIoError::Io { file: path.to_path_buf(), source })?;
+        .map_err(|source| MeshIoError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
     parse_ply(&bytes, path)
 }
 
@@ -205,12 +260,18 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
     // Header: text lines up to "end_header".
     let mut pos = 0usize;
     let mut line_no = 0usize;
-    let mut next_line = |pos: &mut usize| -> Option<String> {
+    let next_line = |pos: &mut usize| -> Option<String> {
         if *pos >= bytes.len() {
             return None;
         }
-        let end = bytes[*pos..].iter().position(|&b| b == b'\n').map(|e| *pos + e).unwrap_or(bytes.len());
-        let s = String::from_utf8_lossy(&bytes[*pos..end]).trim_end_matches('\r').to_string();
+        let end = bytes[*pos..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map(|e| *pos + e)
+            .unwrap_or(bytes.len());
+        let s = String::from_utf8_lossy(&bytes[*pos..end])
+            .trim_end_matches('\r')
+            .to_string();
         *pos = (end + 1).min(bytes.len());
         Some(s)
     };
@@ -219,7 +280,8 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
     let mut first = true;
     loop {
         line_no += 1;
-        let line = next_line(&mut pos).ok_or_else(|| perr(path, line_no, "header ends before end_header"))?;
+        let line = next_line(&mut pos)
+            .ok_or_else(|| perr(path, line_no, "header ends before end_header"))?;
         if first {
             if line.trim() != "ply" {
                 return Err(perr(path, 1, "not a PLY file (first line is not 'ply')"));
@@ -238,18 +300,30 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
                 })
             }
             Some("element") => {
-                let name = toks.get(1).ok_or_else(|| perr(path, line_no, "element without name"))?;
+                let name = toks
+                    .get(1)
+                    .ok_or_else(|| perr(path, line_no, "element without name"))?;
                 let count: usize = toks
                     .get(2)
                     .and_then(|c| c.parse().ok())
                     .ok_or_else(|| perr(path, line_no, "element without a valid count"))?;
                 if count > MAX_ELEMENTS {
-                    return Err(perr(path, line_no, format!("element count {count} is implausibly large")));
+                    return Err(perr(
+                        path,
+                        line_no,
+                        format!("element count {count} is implausibly large"),
+                    ));
                 }
-                elements.push(PlyElement { name: name.to_string(), count, props: Vec::new() });
+                elements.push(PlyElement {
+                    name: name.to_string(),
+                    count,
+                    props: Vec::new(),
+                });
             }
             Some("property") => {
-                let el = elements.last_mut().ok_or_else(|| perr(path, line_no, "property before any element"))?;
+                let el = elements
+                    .last_mut()
+                    .ok_or_else(|| perr(path, line_no, "property before any element"))?;
                 let prop = if toks.get(1) == Some(&"list") {
                     let ct = toks.get(2).and_then(|t| PlyType::parse(t));
                     let it = toks.get(3).and_then(|t| PlyType::parse(t));
@@ -268,13 +342,25 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
             }
             Some("end_header") => break,
             Some("comment") | Some("obj_info") | None => {}
-            Some(other) => return Err(perr(path, line_no, format!("unknown header keyword '{other}'"))),
+            Some(other) => {
+                return Err(perr(
+                    path,
+                    line_no,
+                    format!("unknown header keyword '{other}'"),
+                ))
+            }
         }
     }
     let format = format.ok_or_else(|| perr(path, line_no, "header has no format line"))?;
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
-    let mut reader = PlyBody { bytes, pos, format, line: line_no, path };
+    let mut reader = PlyBody {
+        bytes,
+        pos,
+        format,
+        line: line_no,
+        path,
+    };
     for el in &elements {
         for _ in 0..el.count {
             reader.begin_record()?;
@@ -298,7 +384,8 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
                         if !(0.0..=1024.0).contains(&n) {
                             return Err(reader.err(format!("list length {n} out of range")));
                         }
-                        let keep = el.name == "face" && (name == "vertex_indices" || name == "vertex_index");
+                        let keep = el.name == "face"
+                            && (name == "vertex_indices" || name == "vertex_index");
                         for _ in 0..n as usize {
                             let v = reader.scalar(*it)?;
                             if keep {
@@ -329,7 +416,10 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
     }
     let n = positions.len() as u32;
     if triangles.iter().any(|t| t.iter().any(|&v| v >= n)) {
-        return Err(MeshIoError::Invalid { file: path.to_path_buf(), msg: format!("face index beyond {n} vertices") });
+        return Err(MeshIoError::Invalid {
+            file: path.to_path_buf(),
+            msg: format!("face index beyond {n} vertices"),
+        });
     }
     triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
     finish(path, positions, triangles)
@@ -347,14 +437,19 @@ impl PlyBody<'_> {
     fn err(&self, msg: impl Into<String>) -> MeshIoError {
         match self.format {
             PlyFormat::Ascii => perr(self.path, self.line, msg),
-            _ => MeshIoError::Invalid { file: self.path.to_path_buf(), msg: format!("at byte {}: {}", self.pos, msg.into()) },
+            _ => MeshIoError::Invalid {
+                file: self.path.to_path_buf(),
+                msg: format!("at byte {}: {}", self.pos, msg.into()),
+            },
         }
     }
     fn begin_record(&mut self) -> Result<(), MeshIoError> {
         if self.format == PlyFormat::Ascii {
             self.line += 1;
             // Skip blank lines.
-            while self.pos < self.bytes.len() && (self.bytes[self.pos] == b'\n' || self.bytes[self.pos] == b'\r') {
+            while self.pos < self.bytes.len()
+                && (self.bytes[self.pos] == b'\n' || self.bytes[self.pos] == b'\r')
+            {
                 if self.bytes[self.pos] == b'\n' {
                     self.line += 1;
                 }
@@ -375,7 +470,9 @@ impl PlyBody<'_> {
     fn scalar(&mut self, t: PlyType) -> Result<f64, MeshIoError> {
         match self.format {
             PlyFormat::Ascii => {
-                while self.pos < self.bytes.len() && (self.bytes[self.pos] == b' ' || self.bytes[self.pos] == b'\t') {
+                while self.pos < self.bytes.len()
+                    && (self.bytes[self.pos] == b' ' || self.bytes[self.pos] == b'\t')
+                {
                     self.pos += 1;
                 }
                 let start = self.pos;
@@ -386,7 +483,8 @@ impl PlyBody<'_> {
                     return Err(self.err("record ends early (truncated file?)"));
                 }
                 let tok = String::from_utf8_lossy(&self.bytes[start..self.pos]).to_string();
-                tok.parse::<f64>().map_err(|_| self.err(format!("bad number '{tok}'")))
+                tok.parse::<f64>()
+                    .map_err(|_| self.err(format!("bad number '{tok}'")))
             }
             PlyFormat::BinLe | PlyFormat::BinBe => {
                 let n = t.size();
@@ -417,11 +515,17 @@ impl PlyBody<'_> {
 fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, MeshIoError> {
     std::fs::File::create(path)
         .map(std::io::BufWriter::new)
-        .map_err(|source| MeshIoError::Io { file: path.to_path_buf(), source })
+        .map_err(|source| MeshIoError::Io {
+            file: path.to_path_buf(),
+            source,
+        })
 }
 
 fn wio(path: &Path) -> impl Fn(std::io::Error) -> MeshIoError + '_ {
-    move |source| MeshIoError::Io { file: path.to_path_buf(), source }
+    move |source| MeshIoError::Io {
+        file: path.to_path_buf(),
+        source,
+    }
 }
 
 /// Writes an OBJ file (`v` and `f` lines, 1-based indices, 6 decimals = micrometres).
@@ -432,7 +536,10 @@ pub fn write_obj(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
 }
 
 pub fn write_obj_to(w: &mut impl Write, mesh: &TriMesh) -> std::io::Result<()> {
-    writeln!(w, "# fitstation mesh, metres, station frame (+Y up, +Z front, +X subject's left)")?;
+    writeln!(
+        w,
+        "# fitstation mesh, metres, station frame (+Y up, +Z front, +X subject's left)"
+    )?;
     for p in &mesh.positions {
         writeln!(w, "v {:.6} {:.6} {:.6}", p.x, p.y, p.z)?;
     }
@@ -473,7 +580,10 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
 pub fn write_glb(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
     let normals = mesh.vertex_normals();
     let mut bin: Vec<u8> = Vec::new();
-    let bb = mesh.bounds().ok_or_else(|| MeshIoError::Invalid { file: path.to_path_buf(), msg: "empty mesh".into() })?;
+    let bb = mesh.bounds().ok_or_else(|| MeshIoError::Invalid {
+        file: path.to_path_buf(),
+        msg: "empty mesh".into(),
+    })?;
     for p in &mesh.positions {
         for c in p.to_array() {
             bin.extend_from_slice(&(c as f32).to_le_bytes());
@@ -515,7 +625,10 @@ pub fn write_glb(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
             {"bufferView": 2, "componentType": 5125, "count": mesh.triangles.len() * 3, "type": "SCALAR"}
         ]
     });
-    let mut js = serde_json::to_vec(&json).map_err(|e| MeshIoError::Invalid { file: path.to_path_buf(), msg: e.to_string() })?;
+    let mut js = serde_json::to_vec(&json).map_err(|e| MeshIoError::Invalid {
+        file: path.to_path_buf(),
+        msg: e.to_string(),
+    })?;
     while js.len() % 4 != 0 {
         js.push(b' ');
     }
@@ -563,7 +676,10 @@ mod tests {
         write_mesh(&g, &m).unwrap();
         let bytes = std::fs::read(&g).unwrap();
         assert_eq!(&bytes[..4], b"glTF");
-        assert_eq!(u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize, bytes.len());
+        assert_eq!(
+            u32::from_le_bytes(bytes[8..12].try_into().unwrap()) as usize,
+            bytes.len()
+        );
     }
 
     #[test]
@@ -615,7 +731,9 @@ mod tests {
         ];
         for (i, c) in ply_cases.iter().enumerate() {
             let e = parse_ply(c, Path::new("bad.ply"));
-            let msg = e.expect_err(&format!("ply case {i} should fail")).to_string();
+            let msg = e
+                .expect_err(&format!("ply case {i} should fail"))
+                .to_string();
             assert!(msg.contains("bad.ply"), "ply case {i}: {msg}");
         }
         // Random bytes never panic.

@@ -32,7 +32,10 @@ pub struct Aabb {
 impl Aabb {
     pub fn from_points(points: &[DVec3]) -> Option<Self> {
         let first = *points.first()?;
-        let mut b = Aabb { min: first, max: first };
+        let mut b = Aabb {
+            min: first,
+            max: first,
+        };
         for p in points {
             b.min = b.min.min(*p);
             b.max = b.max.max(*p);
@@ -137,7 +140,11 @@ impl OneRings {
             is_boundary[v] = open || !closed || !complete;
             offsets.push(ring.len() as u32);
         }
-        OneRings { offsets, ring, is_boundary }
+        OneRings {
+            offsets,
+            ring,
+            is_boundary,
+        }
     }
 
     /// Neighbours of `v`, counter-clockwise seen from outside.
@@ -166,7 +173,10 @@ impl OneRings {
 
 impl TriMesh {
     pub fn new(positions: Vec<DVec3>, triangles: Vec<[u32; 3]>) -> Self {
-        TriMesh { positions, triangles }
+        TriMesh {
+            positions,
+            triangles,
+        }
     }
     pub fn vertex_count(&self) -> usize {
         self.positions.len()
@@ -225,7 +235,11 @@ impl TriMesh {
                 cnt += 1;
             }
         }
-        if cnt == 0 { 0.0 } else { sum / cnt as f64 }
+        if cnt == 0 {
+            0.0
+        } else {
+            sum / cnt as f64
+        }
     }
 
     /// Signed volume (positive for a closed, outward-oriented mesh), cubic metres.
@@ -344,7 +358,13 @@ pub mod shapes {
 
     /// A closed cylinder along +Y with an elliptic cross-section (semi-axes `a` in x,
     /// `b` in z), from y = 0 to `height`, capped at both ends with a centre vertex.
-    pub fn elliptic_cylinder(a: f64, b: f64, height: f64, rings: usize, segments: usize) -> TriMesh {
+    pub fn elliptic_cylinder(
+        a: f64,
+        b: f64,
+        height: f64,
+        rings: usize,
+        segments: usize,
+    ) -> TriMesh {
         profile_prism(
             &(0..segments)
                 .map(|s| {
@@ -378,9 +398,9 @@ pub mod shapes {
                 t.push([idx(r, s), idx(r + 1, s), idx(r + 1, s + 1)]);
             }
         }
-        let (cx, cz) = profile
-            .iter()
-            .fold((0.0, 0.0), |a, q| (a.0 + q.0 / segments as f64, a.1 + q.1 / segments as f64));
+        let (cx, cz) = profile.iter().fold((0.0, 0.0), |a, q| {
+            (a.0 + q.0 / segments as f64, a.1 + q.1 / segments as f64)
+        });
         let bottom = p.len() as u32;
         p.push(DVec3::new(cx, 0.0, cz));
         let top = p.len() as u32;

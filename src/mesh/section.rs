@@ -17,11 +17,17 @@ pub struct Plane {
 impl Plane {
     pub fn new(point: DVec3, normal: DVec3) -> Self {
         let n = normal.normalize();
-        Plane { normal: n, offset: n.dot(point) }
+        Plane {
+            normal: n,
+            offset: n.dot(point),
+        }
     }
     /// The horizontal plane at height `y`.
     pub fn horizontal(y: f64) -> Self {
-        Plane { normal: DVec3::Y, offset: y }
+        Plane {
+            normal: DVec3::Y,
+            offset: y,
+        }
     }
     /// Two in-plane unit axes (u, v) with u x v = normal. For the horizontal plane
     /// u = +X and v = +Z... mapped so that a section's 2-D point is (x, z).
@@ -29,7 +35,11 @@ impl Plane {
         if (self.normal - DVec3::Y).length() < 1e-12 {
             return (DVec3::X, DVec3::Z);
         }
-        let helper = if self.normal.x.abs() < 0.9 { DVec3::X } else { DVec3::Z };
+        let helper = if self.normal.x.abs() < 0.9 {
+            DVec3::X
+        } else {
+            DVec3::Z
+        };
         let u = (helper - self.normal * self.normal.dot(helper)).normalize();
         let v = self.normal.cross(u);
         (u, v)
@@ -53,7 +63,11 @@ pub fn slice(mesh: &TriMesh, plane: &Plane) -> Vec<SectionLoop> {
         .iter()
         .map(|p| {
             let s = plane.signed_distance(*p);
-            if s.abs() < eps { eps } else { s }
+            if s.abs() < eps {
+                eps
+            } else {
+                s
+            }
         })
         .collect();
     // Segments keyed by the mesh edges they cross, so chaining is exact (no tolerance).
@@ -116,7 +130,10 @@ pub fn slice(mesh: &TriMesh, plane: &Plane) -> Vec<SectionLoop> {
                 None => break,
             }
         }
-        loops.push(SectionLoop { points: chain.into_iter().map(point_of).collect(), closed });
+        loops.push(SectionLoop {
+            points: chain.into_iter().map(point_of).collect(),
+            closed,
+        });
     }
     loops
 }

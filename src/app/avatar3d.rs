@@ -1,0 +1,658 @@
+//! The avatar in 3-D: an orbit camera and a wgpu paint callback that renders the mesh
+//! with Lambert shading into its own colour + depth textures in `prepare` (egui's pass
+//! has no depth buffer) and draws that picture as a textured quad in `paint`.
+//!
+//! Conventions: the mesh is in the station frame (metres, +Y up, +Z toward the front
+//! camera, +X the subject's left). The orbit camera turns about +Y around `target`;
+//! yaw 0 looks from +Z (the front camera's side), yaw +90 degrees from +X (the side
+//! camera's side). Texture sizes are physical pixels.
+
+use crate::mesh::TriMesh;
+use eframe::egui_wgpu::{self, wgpu};
+use glam::{Mat4, Vec3};
+use std::sync::Arc;
+
+/// Orbit camera about the avatar.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OrbitCamera {
+    /// Rotation about +Y, radians (0: from the front).
+    pub yaw: f32,
+    /// Elevation, radians (positive: from above).
+    pub pitch: f32,
+    pub distance_m: f32,
+    pub target: Vec3,
+}
+
+/// A named viewpoint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ViewPreset {
+    Front,
+    Side,
+    ThreeQuarter,
+}
+
+/// Vertical field of view of the avatar view.
+const FOV_Y_RAD: f32 = 0.6;
+const NEAR_M: f32 = 0.05;
+const FAR_M: f32 = 50.0;
+/// Radians of orbit per point of mouse drag.
+const ORBIT_RAD_PER_POINT: f32 = 0.01;
+const PITCH_LIMIT_RAD: f32 = 1.4;
+const DISTANCE_RANGE_M: (f32, f32) = (0.8, 12.0);
+
+impl Default for OrbitCamera {
+    fn default() -> Self {
+        OrbitCamera {
+            yaw: 0.0,
+            pitch: 0.1,
+            distance_m: 3.6,
+            target: Vec3::new(0.0, 0.88, 0.0),
+        }
+    }
+}
+
+impl OrbitCamera {
+    pub fn preset(&mut self, p: ViewPreset) {
+        self.yaw = match p {
+            ViewPreset::Front => 0.0,
+            ViewPreset::Side => std::f32::consts::FRAC_PI_2,
+            ViewPreset::ThreeQuarter => std::f32::consts::FRAC_PI_4,
+        };
+        self.pitch = 0.1;
+    }
+
+    /// Applies a mouse drag (points) and a scroll (points, positive zooms in).
+    pub fn drag(&mut self, dx: f32, dy: f32, scroll: f32) {
+        self.yaw -= dx * ORBIT_RAD_PER_POINT;
+        self.pitch =
+            (self.pitch + dy * ORBIT_RAD_PER_POINT).clamp(-PITCH_LIMIT_RAD, PITCH_LIMIT_RAD);
+        self.distance_m = (self.distance_m * (-scroll * 0.002).exp())
+            .clamp(DISTANCE_RANGE_M.0, DISTANCE_RANGE_M.1);
+    }
+
+    /// Sets the distance so a body of `size` (metres, x y z extents) fills the view of
+    /// aspect width/height at any yaw, with a margin.
+    pub fn fit(&mut self, size: Vec3, aspect: f32) {
+        const MARGIN: f32 = 1.12;
+        let t = (FOV_Y_RAD * 0.5).tan();
+        let half_h = 0.5 * size.y;
+        let half_w = 0.5 * size.x.max(size.z);
+        let d = (half_h / t).max(half_w / (t * aspect.max(0.05))) * MARGIN + half_w;
+        self.distance_m = d.clamp(DISTANCE_RANGE_M.0, DISTANCE_RANGE_M.1);
+    }
+
+    pub fn eye(&self) -> Vec3 {
+        let dir = Vec3::new(
+            self.yaw.sin() * self.pitch.cos(),
+            self.pitch.sin(),
+            self.yaw.cos() * self.pitch.cos(),
+        );
+        self.target + dir * self.distance_m
+    }
+
+    /// Clip-from-station matrix (wgpu depth 0..1) for an aspect ratio width/height.
+    pub fn view_proj(&self, aspect: f32) -> Mat4 {
+        let proj = Mat4::perspective_rh(FOV_Y_RAD, aspect.max(0.01), NEAR_M, FAR_M);
+        proj * Mat4::look_at_rh(self.eye(), self.target, Vec3::Y)
+    }
+}
+
+/// Base colour of the avatar (linear RGB); the screenshot test looks for its hue.
+pub const AVATAR_RGB: [f32; 3] = [0.20, 0.55, 0.85];
+/// Background of the avatar view (sRGB 0..1).
+pub const AVATAR_BACKGROUND: [f64; 3] = [0.10, 0.11, 0.13];
+
+const SHADER: &str = r#"
+struct Uniforms {
+    view_proj: mat4x4<f32>,
+    eye: vec4<f32>,
+    colour: vec4<f32>,
+};
+@group(0) @binding(0) var<uniform> u: Uniforms;
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) normal: vec3<f32>,
+    @location(1) world: vec3<f32>,
+};
+
+@vertex
+fn vs_mesh(@location(0) pos: vec3<f32>, @location(1) normal: vec3<f32>) -> VsOut {
+    var o: VsOut;
+    o.clip = u.view_proj * vec4<f32>(pos, 1.0);
+    o.normal = normal;
+    o.world = pos;
+    return o;
+}
+
+@fragment
+fn fs_mesh(i: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    var n = normalize(i.normal);
+    if (!front) { n = -n; }
+    // Lambert: a key light from the viewer's upper left and a dim fill from above.
+    let to_eye = normalize(u.eye.xyz - i.world);
+    let key = normalize(to_eye + vec3<f32>(-0.3, 0.5, 0.0));
+    let lambert = max(dot(n, key), 0.0) * 0.8 + max(n.y, 0.0) * 0.15 + 0.12;
+    let linear = u.colour.rgb * lambert;
+    return vec4<f32>(pow(linear, vec3<f32>(1.0 / 2.2)), 1.0);
+}
+
+struct BlitOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) uv: vec2<f32>,
+};
+
+@vertex
+fn vs_blit(@builtin(vertex_index) k: u32) -> BlitOut {
+    // One triangle covering the viewport.
+    let x = f32((k << 1u) & 2u);
+    let y = f32(k & 2u);
+    var o: BlitOut;
+    o.clip = vec4<f32>(x * 2.0 - 1.0, 1.0 - y * 2.0, 0.0, 1.0);
+    o.uv = vec2<f32>(x, y);
+    return o;
+}
+
+@group(0) @binding(0) var tex: texture_2d<f32>;
+@group(0) @binding(1) var samp: sampler;
+
+@fragment
+fn fs_blit(i: BlitOut) -> @location(0) vec4<f32> {
+    return textureSample(tex, samp, i.uv);
+}
+"#;
+
+const COLOUR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8Unorm;
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Bytes of the uniform block: mat4 + 2 vec4.
+const UNIFORM_BYTES: u64 = 64 + 16 + 16;
+
+/// GPU state of the avatar view, kept in egui-wgpu's callback resources.
+pub struct AvatarResources {
+    mesh_pipeline: wgpu::RenderPipeline,
+    blit_pipeline: wgpu::RenderPipeline,
+    uniform_buffer: wgpu::Buffer,
+    uniform_bind_group: wgpu::BindGroup,
+    blit_layout: wgpu::BindGroupLayout,
+    sampler: wgpu::Sampler,
+    target: Option<Target>,
+    mesh: Option<GpuMesh>,
+    /// What the colour texture currently shows (mesh generation, camera, size): an
+    /// unchanged view is not rendered again.
+    shown: Option<(Option<u64>, [f32; 6], [u32; 2])>,
+    /// Scratch for vertex data (position + normal interleaved).
+    vertex_scratch: Vec<f32>,
+    index_scratch: Vec<u32>,
+}
+
+struct Target {
+    size: [u32; 2],
+    colour_view: wgpu::TextureView,
+    depth_view: wgpu::TextureView,
+    blit_bind_group: wgpu::BindGroup,
+}
+
+struct GpuMesh {
+    generation: u64,
+    vertices: wgpu::Buffer,
+    indices: wgpu::Buffer,
+    index_count: u32,
+    vertex_capacity: u64,
+    index_capacity: u64,
+}
+
+impl AvatarResources {
+    /// Creates the pipelines; `target_format` is the format of egui's pass.
+    pub fn new(device: &wgpu::Device, target_format: wgpu::TextureFormat) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("avatar"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
+        });
+        let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("avatar_uniforms"),
+            entries: &[wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Buffer {
+                    ty: wgpu::BufferBindingType::Uniform,
+                    has_dynamic_offset: false,
+                    min_binding_size: wgpu::BufferSize::new(UNIFORM_BYTES),
+                },
+                count: None,
+            }],
+        });
+        let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("avatar_uniforms"),
+            size: UNIFORM_BYTES,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let uniform_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("avatar_uniforms"),
+            layout: &uniform_layout,
+            entries: &[wgpu::BindGroupEntry {
+                binding: 0,
+                resource: uniform_buffer.as_entire_binding(),
+            }],
+        });
+        let mesh_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("avatar_mesh"),
+            bind_group_layouts: &[Some(&uniform_layout)],
+            immediate_size: 0,
+        });
+        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("avatar_mesh"),
+            layout: Some(&mesh_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_mesh"),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 6 * 4,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+                })],
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_mesh"),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOUR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+            label: Some("avatar_blit"),
+            entries: &[
+                wgpu::BindGroupLayoutEntry {
+                    binding: 0,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Texture {
+                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                        view_dimension: wgpu::TextureViewDimension::D2,
+                        multisampled: false,
+                    },
+                    count: None,
+                },
+                wgpu::BindGroupLayoutEntry {
+                    binding: 1,
+                    visibility: wgpu::ShaderStages::FRAGMENT,
+                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                    count: None,
+                },
+            ],
+        });
+        let blit_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+            label: Some("avatar_blit"),
+            bind_group_layouts: &[Some(&blit_layout)],
+            immediate_size: 0,
+        });
+        let blit_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("avatar_blit"),
+            layout: Some(&blit_pipeline_layout),
+            vertex: wgpu::VertexState {
+                module: &module,
+                entry_point: Some("vs_blit"),
+                buffers: &[],
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            },
+            primitive: wgpu::PrimitiveState::default(),
+            depth_stencil: None,
+            multisample: wgpu::MultisampleState::default(),
+            fragment: Some(wgpu::FragmentState {
+                module: &module,
+                entry_point: Some("fs_blit"),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: target_format,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+                compilation_options: wgpu::PipelineCompilationOptions::default(),
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("avatar_blit"),
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            ..Default::default()
+        });
+        AvatarResources {
+            mesh_pipeline,
+            blit_pipeline,
+            uniform_buffer,
+            uniform_bind_group,
+            blit_layout,
+            sampler,
+            target: None,
+            shown: None,
+            mesh: None,
+            vertex_scratch: Vec::new(),
+            index_scratch: Vec::new(),
+        }
+    }
+
+    fn ensure_target(&mut self, device: &wgpu::Device, size: [u32; 2]) {
+        if self.target.as_ref().is_some_and(|t| t.size == size) {
+            return;
+        }
+        self.shown = None;
+        let extent = wgpu::Extent3d {
+            width: size[0],
+            height: size[1],
+            depth_or_array_layers: 1,
+        };
+        let make = |format, usage, label| {
+            device
+                .create_texture(&wgpu::TextureDescriptor {
+                    label: Some(label),
+                    size: extent,
+                    mip_level_count: 1,
+                    sample_count: 1,
+                    dimension: wgpu::TextureDimension::D2,
+                    format,
+                    usage,
+                    view_formats: &[],
+                })
+                .create_view(&wgpu::TextureViewDescriptor::default())
+        };
+        let colour_view = make(
+            COLOUR_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::TEXTURE_BINDING,
+            "avatar_colour",
+        );
+        let depth_view = make(
+            DEPTH_FORMAT,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+            "avatar_depth",
+        );
+        let blit_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("avatar_blit"),
+            layout: &self.blit_layout,
+            entries: &[
+                wgpu::BindGroupEntry {
+                    binding: 0,
+                    resource: wgpu::BindingResource::TextureView(&colour_view),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 1,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        });
+        self.target = Some(Target {
+            size,
+            colour_view,
+            depth_view,
+            blit_bind_group,
+        });
+    }
+
+    fn upload_mesh(
+        &mut self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        mesh: &TriMesh,
+        generation: u64,
+    ) {
+        if self
+            .mesh
+            .as_ref()
+            .is_some_and(|m| m.generation == generation)
+        {
+            return;
+        }
+        let normals = mesh.vertex_normals();
+        self.vertex_scratch.clear();
+        for (p, n) in mesh.positions.iter().zip(&normals) {
+            self.vertex_scratch.extend_from_slice(&[
+                p.x as f32, p.y as f32, p.z as f32, n.x as f32, n.y as f32, n.z as f32,
+            ]);
+        }
+        let nv = mesh.positions.len() as u32;
+        self.index_scratch.clear();
+        // Triangles with out-of-range indices are skipped rather than sent to the GPU.
+        for t in &mesh.triangles {
+            if t.iter().all(|&i| i < nv) {
+                self.index_scratch.extend_from_slice(t);
+            }
+        }
+        let vbytes: &[u8] = bytemuck::cast_slice(&self.vertex_scratch);
+        let ibytes: &[u8] = bytemuck::cast_slice(&self.index_scratch);
+        let need_v = (vbytes.len() as u64).max(4).next_multiple_of(4);
+        let need_i = (ibytes.len() as u64).max(4).next_multiple_of(4);
+        let reuse = self
+            .mesh
+            .as_ref()
+            .is_some_and(|m| m.vertex_capacity >= need_v && m.index_capacity >= need_i);
+        if !reuse {
+            let buffer = |size, usage, label| {
+                device.create_buffer(&wgpu::BufferDescriptor {
+                    label: Some(label),
+                    size,
+                    usage: usage | wgpu::BufferUsages::COPY_DST,
+                    mapped_at_creation: false,
+                })
+            };
+            // Grow with headroom so a live-deforming avatar does not reallocate.
+            let (cv, ci) = (need_v * 3 / 2, need_i * 3 / 2);
+            self.mesh = Some(GpuMesh {
+                generation,
+                vertices: buffer(
+                    cv.next_multiple_of(4),
+                    wgpu::BufferUsages::VERTEX,
+                    "avatar_vertices",
+                ),
+                indices: buffer(
+                    ci.next_multiple_of(4),
+                    wgpu::BufferUsages::INDEX,
+                    "avatar_indices",
+                ),
+                index_count: 0,
+                vertex_capacity: cv.next_multiple_of(4),
+                index_capacity: ci.next_multiple_of(4),
+            });
+        }
+        if let Some(m) = self.mesh.as_mut() {
+            if !vbytes.is_empty() {
+                queue.write_buffer(&m.vertices, 0, vbytes);
+            }
+            if !ibytes.is_empty() {
+                queue.write_buffer(&m.indices, 0, ibytes);
+            }
+            m.index_count = self.index_scratch.len() as u32;
+            m.generation = generation;
+        }
+    }
+}
+
+/// One frame's avatar view: what to draw and from where.
+pub struct AvatarCallback {
+    pub mesh: Option<Arc<TriMesh>>,
+    /// Changes whenever `mesh` changes (so the upload happens once per new mesh).
+    pub generation: u64,
+    pub camera: OrbitCamera,
+    /// Size of the view in points.
+    pub size_points: [f32; 2],
+}
+
+impl egui_wgpu::CallbackTrait for AvatarCallback {
+    fn prepare(
+        &self,
+        device: &wgpu::Device,
+        queue: &wgpu::Queue,
+        screen: &egui_wgpu::ScreenDescriptor,
+        encoder: &mut wgpu::CommandEncoder,
+        resources: &mut egui_wgpu::CallbackResources,
+    ) -> Vec<wgpu::CommandBuffer> {
+        let Some(res) = resources.get_mut::<AvatarResources>() else {
+            return Vec::new();
+        };
+        let size = [
+            ((self.size_points[0] * screen.pixels_per_point).round() as u32).clamp(1, 8192),
+            ((self.size_points[1] * screen.pixels_per_point).round() as u32).clamp(1, 8192),
+        ];
+        res.ensure_target(device, size);
+        if let Some(mesh) = &self.mesh {
+            res.upload_mesh(device, queue, mesh, self.generation);
+        }
+        let c = &self.camera;
+        let key = (
+            self.mesh.as_ref().map(|_| self.generation),
+            [
+                c.yaw,
+                c.pitch,
+                c.distance_m,
+                c.target.x,
+                c.target.y,
+                c.target.z,
+            ],
+            size,
+        );
+        if res.shown == Some(key) {
+            return Vec::new();
+        }
+        res.shown = Some(key);
+        let vp = self.camera.view_proj(size[0] as f32 / size[1] as f32);
+        let eye = self.camera.eye();
+        let mut uniforms = [0f32; 24];
+        uniforms[..16].copy_from_slice(&vp.to_cols_array());
+        uniforms[16..20].copy_from_slice(&[eye.x, eye.y, eye.z, 1.0]);
+        uniforms[20..24].copy_from_slice(&[AVATAR_RGB[0], AVATAR_RGB[1], AVATAR_RGB[2], 1.0]);
+        queue.write_buffer(&res.uniform_buffer, 0, bytemuck::cast_slice(&uniforms));
+        let Some(target) = res.target.as_ref() else {
+            return Vec::new();
+        };
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("avatar"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &target.colour_view,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color {
+                        r: AVATAR_BACKGROUND[0],
+                        g: AVATAR_BACKGROUND[1],
+                        b: AVATAR_BACKGROUND[2],
+                        a: 1.0,
+                    }),
+                    store: wgpu::StoreOp::Store,
+                },
+                depth_slice: None,
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &target.depth_view,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            occlusion_query_set: None,
+            timestamp_writes: None,
+            multiview_mask: None,
+        });
+        if let (Some(m), true) = (res.mesh.as_ref(), self.mesh.is_some()) {
+            if m.index_count > 0 {
+                pass.set_pipeline(&res.mesh_pipeline);
+                pass.set_bind_group(0, &res.uniform_bind_group, &[]);
+                pass.set_vertex_buffer(0, m.vertices.slice(..));
+                pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
+                pass.draw_indexed(0..m.index_count, 0, 0..1);
+            }
+        }
+        Vec::new()
+    }
+
+    fn paint(
+        &self,
+        _info: egui::PaintCallbackInfo,
+        render_pass: &mut wgpu::RenderPass<'static>,
+        resources: &egui_wgpu::CallbackResources,
+    ) {
+        let Some(res) = resources.get::<AvatarResources>() else {
+            return;
+        };
+        let Some(target) = res.target.as_ref() else {
+            return;
+        };
+        render_pass.set_pipeline(&res.blit_pipeline);
+        render_pass.set_bind_group(0, &target.blit_bind_group, &[]);
+        render_pass.draw(0..3, 0..1);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn presets_look_from_the_named_side() {
+        let mut c = OrbitCamera::default();
+        c.preset(ViewPreset::Front);
+        assert!(c.eye().z > c.target.z + 1.0 && c.eye().x.abs() < 1e-4);
+        c.preset(ViewPreset::Side);
+        assert!(c.eye().x > c.target.x + 1.0 && (c.eye().z - c.target.z).abs() < 1e-4);
+        c.preset(ViewPreset::ThreeQuarter);
+        assert!(c.eye().x > 0.5 && c.eye().z > 0.5);
+    }
+
+    #[test]
+    fn fit_keeps_the_body_inside_the_view() {
+        let size = Vec3::new(0.9, 1.75, 0.3);
+        for aspect in [0.4f32, 0.75, 1.5] {
+            for preset in [
+                ViewPreset::Front,
+                ViewPreset::Side,
+                ViewPreset::ThreeQuarter,
+            ] {
+                let mut c = OrbitCamera {
+                    target: Vec3::new(0.0, 0.875, 0.0),
+                    ..Default::default()
+                };
+                c.preset(preset);
+                c.fit(size, aspect);
+                let vp = c.view_proj(aspect);
+                for sx in [-0.45f32, 0.45] {
+                    for sy in [0.0f32, 1.75] {
+                        for sz in [-0.15f32, 0.15] {
+                            let p = vp * Vec3::new(sx, sy, sz).extend(1.0);
+                            assert!(
+                                (p.x / p.w).abs() <= 1.0 && (p.y / p.w).abs() <= 1.0,
+                                "{aspect} {preset:?}"
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn target_projects_to_the_centre_and_drag_is_clamped() {
+        let mut c = OrbitCamera::default();
+        let p = c.view_proj(0.75) * c.target.extend(1.0);
+        assert!((p.x / p.w).abs() < 1e-5 && (p.y / p.w).abs() < 1e-5);
+        assert!(p.z / p.w > 0.0 && p.z / p.w < 1.0);
+        c.drag(0.0, 1e6, 1e6);
+        assert!(c.pitch <= PITCH_LIMIT_RAD && c.distance_m >= DISTANCE_RANGE_M.0);
+    }
+}

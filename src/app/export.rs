@@ -1,0 +1,184 @@
+//! Operator exports: the avatar (OBJ, PLY or glTF binary through `mesh::io::write_mesh`)
+//! and the measurements (JSON with `measurements_mm` as in `report.json`, or CSV with
+//! `name,value_mm,stability_mm`). Values in millimetres, avatar in metres, station frame.
+
+use crate::mesh::io::{write_mesh, MeshIoError};
+use crate::mesh::TriMesh;
+use crate::pipeline::MeasurementValue;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    #[error(transparent)]
+    Mesh(#[from] MeshIoError),
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("nothing to export: {0}")]
+    Nothing(&'static str),
+}
+
+/// Avatar file formats offered to the operator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum AvatarFormat {
+    Obj,
+    Ply,
+    Glb,
+}
+
+impl AvatarFormat {
+    pub const ALL: [AvatarFormat; 3] = [AvatarFormat::Obj, AvatarFormat::Ply, AvatarFormat::Glb];
+    pub fn extension(self) -> &'static str {
+        match self {
+            AvatarFormat::Obj => "obj",
+            AvatarFormat::Ply => "ply",
+            AvatarFormat::Glb => "glb",
+        }
+    }
+}
+
+/// Writes `<dir>/avatar.<ext>`; returns the path.
+pub fn export_avatar(
+    dir: &Path,
+    mesh: Option<&TriMesh>,
+    format: AvatarFormat,
+) -> Result<PathBuf, ExportError> {
+    let mesh = mesh.ok_or(ExportError::Nothing("no avatar has been fitted yet"))?;
+    std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let path = dir.join(format!("avatar.{}", format.extension()));
+    write_mesh(&path, mesh)?;
+    Ok(path)
+}
+
+/// Measurements as JSON: `{"measurements_mm": {...}, "stability_mm": {...}}`, values
+/// rounded to 0.1 mm.
+pub fn measurements_json(m: &[MeasurementValue]) -> serde_json::Value {
+    let round = |v: f64| (v * 10.0).round() / 10.0;
+    let mut values = serde_json::Map::new();
+    let mut stability = serde_json::Map::new();
+    for v in m {
+        values.insert(v.name.clone(), serde_json::json!(round(v.value_mm)));
+        stability.insert(v.name.clone(), serde_json::json!(round(v.stability_mm)));
+    }
+    serde_json::json!({ "measurements_mm": values, "stability_mm": stability })
+}
+
+/// Measurements as CSV with a header line.
+pub fn measurements_csv(m: &[MeasurementValue]) -> String {
+    let mut s = String::from("name,value_mm,stability_mm\n");
+    for v in m {
+        // Names are report keys (no commas); quote defensively anyway.
+        let name = if v.name.contains([',', '"']) {
+            format!("\"{}\"", v.name.replace('"', "\"\""))
+        } else {
+            v.name.clone()
+        };
+        s.push_str(&format!(
+            "{},{:.1},{:.1}\n",
+            name, v.value_mm, v.stability_mm
+        ));
+    }
+    s
+}
+
+/// Writes `<dir>/measurements.json` and `<dir>/measurements.csv`; returns both paths.
+pub fn export_measurements(
+    dir: &Path,
+    m: &[MeasurementValue],
+) -> Result<[PathBuf; 2], ExportError> {
+    if m.is_empty() {
+        return Err(ExportError::Nothing("no measurements yet"));
+    }
+    std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    let json = dir.join("measurements.json");
+    let text = serde_json::to_string_pretty(&measurements_json(m)).unwrap_or_default();
+    std::fs::write(&json, text).map_err(|source| ExportError::Io {
+        path: json.clone(),
+        source,
+    })?;
+    let csv = dir.join("measurements.csv");
+    std::fs::write(&csv, measurements_csv(m)).map_err(|source| ExportError::Io {
+        path: csv.clone(),
+        source,
+    })?;
+    Ok([json, csv])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::io::read_mesh;
+    use crate::mesh::shapes;
+
+    fn values() -> Vec<MeasurementValue> {
+        vec![
+            MeasurementValue {
+                name: "chest_girth".into(),
+                value_mm: 1001.04,
+                stability_mm: 0.26,
+            },
+            MeasurementValue {
+                name: "odd,name".into(),
+                value_mm: 5.0,
+                stability_mm: 0.0,
+            },
+        ]
+    }
+
+    #[test]
+    fn json_and_csv_carry_every_value() {
+        let j = measurements_json(&values());
+        assert_eq!(
+            j["measurements_mm"]["chest_girth"],
+            serde_json::json!(1001.0)
+        );
+        assert_eq!(j["stability_mm"]["chest_girth"], serde_json::json!(0.3));
+        let csv = measurements_csv(&values());
+        let lines: Vec<&str> = csv.lines().collect();
+        assert_eq!(lines[0], "name,value_mm,stability_mm");
+        assert_eq!(lines[1], "chest_girth,1001.0,0.3");
+        assert_eq!(lines[2], "\"odd,name\",5.0,0.0");
+    }
+
+    #[test]
+    fn exports_read_back() {
+        let dir = std::env::temp_dir().join(format!("fitstation-export-{}", std::process::id()));
+        let mesh = shapes::uv_sphere(0.5, 6, 8);
+        for f in AvatarFormat::ALL {
+            let p = export_avatar(&dir, Some(&mesh), f).expect("export");
+            if f != AvatarFormat::Glb {
+                let back = read_mesh(&p).expect("read back");
+                assert_eq!(back.vertex_count(), mesh.vertex_count());
+            } else {
+                assert!(std::fs::metadata(&p).expect("glb").len() > 0);
+            }
+        }
+        assert!(matches!(
+            export_avatar(&dir, None, AvatarFormat::Obj),
+            Err(ExportError::Nothing(_))
+        ));
+        let [j, c] = export_measurements(&dir, &values()).expect("measurements");
+        let parsed: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(j).expect("json")).expect("valid json");
+        assert_eq!(
+            parsed["measurements_mm"]["odd,name"],
+            serde_json::json!(5.0)
+        );
+        assert!(std::fs::read_to_string(c)
+            .expect("csv")
+            .starts_with("name,"));
+        assert!(matches!(
+            export_measurements(&dir, &[]),
+            Err(ExportError::Nothing(_))
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,261 @@
+//! Recording a session to a recording folder (formats.md "A recording"):
+//! `station.yaml`, `front/000000.png ...`, `side/000000.png ...` (same indices, frames
+//! captured in pairs) and an optional `recording.yaml` with the frame rate.
+//!
+//! [`RecordingWriter`] writes synchronously (used by tests and by the background
+//! writer); [`Recorder`] runs one on its own thread behind a bounded queue so the capture
+//! thread never waits for PNG encoding: a full queue drops the pair and counts it.
+//! Nothing about the person is written besides the frames themselves.
+//! (A small local writer: `src/recording` is built by another engineer.)
+
+use crate::camera::StationCalibration;
+use crate::pipeline::FramePair;
+use image::codecs::png::{CompressionType, FilterType, PngEncoder};
+use image::{ImageEncoder, RgbImage};
+use std::io::BufWriter;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+
+/// Why recording failed.
+#[derive(Debug, thiserror::Error)]
+pub enum RecordError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{path}: cannot encode PNG: {msg}")]
+    Encode { path: PathBuf, msg: String },
+    #[error("{0} already holds a recording (front/ exists): choose a new folder")]
+    NotEmpty(PathBuf),
+}
+
+/// Writes frame pairs into a recording folder, numbering from 0.
+pub struct RecordingWriter {
+    dir: PathBuf,
+    next: u64,
+}
+
+fn io_err(path: &Path) -> impl FnOnce(std::io::Error) -> RecordError + '_ {
+    move |source| RecordError::Io {
+        path: path.to_path_buf(),
+        source,
+    }
+}
+
+impl RecordingWriter {
+    /// Creates `dir` (and its `front/`, `side/`), writes `station.yaml` when the
+    /// calibration is known and `recording.yaml` with the frame rate when known.
+    pub fn create(
+        dir: &Path,
+        calibration: Option<&StationCalibration>,
+        fps: Option<f64>,
+    ) -> Result<Self, RecordError> {
+        if dir.join("front").exists() {
+            return Err(RecordError::NotEmpty(dir.to_path_buf()));
+        }
+        for sub in ["front", "side"] {
+            let p = dir.join(sub);
+            std::fs::create_dir_all(&p).map_err(io_err(&p))?;
+        }
+        if let Some(cal) = calibration {
+            let p = dir.join("station.yaml");
+            std::fs::write(&p, cal.to_yaml_string()).map_err(io_err(&p))?;
+        }
+        let p = dir.join("recording.yaml");
+        let mut meta = String::from("# written by fitstation (operator recording)\n");
+        if let Some(fps) = fps {
+            meta.push_str(&format!("fps: {fps}\n"));
+        }
+        std::fs::write(&p, meta).map_err(io_err(&p))?;
+        Ok(RecordingWriter {
+            dir: dir.to_path_buf(),
+            next: 0,
+        })
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Pairs written so far.
+    pub fn frames_written(&self) -> u64 {
+        self.next
+    }
+
+    /// Writes one pair as `front/NNNNNN.png` and `side/NNNNNN.png`.
+    pub fn write_pair(&mut self, front: &RgbImage, side: &RgbImage) -> Result<(), RecordError> {
+        let name = format!("{:06}.png", self.next);
+        write_png(&self.dir.join("front").join(&name), front)?;
+        write_png(&self.dir.join("side").join(&name), side)?;
+        self.next += 1;
+        Ok(())
+    }
+}
+
+fn write_png(path: &Path, img: &RgbImage) -> Result<(), RecordError> {
+    let file = std::fs::File::create(path).map_err(io_err(path))?;
+    // Fast compression: a 720p frame pair must keep up with the cameras.
+    PngEncoder::new_with_quality(BufWriter::new(file), CompressionType::Fast, FilterType::Sub)
+        .write_image(
+            img.as_raw(),
+            img.width(),
+            img.height(),
+            image::ExtendedColorType::Rgb8,
+        )
+        .map_err(|e| RecordError::Encode {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })
+}
+
+/// Pairs waiting for the writer thread; more are dropped (and counted).
+const RECORD_QUEUE: usize = 16;
+
+/// Counters shown next to the recording indicator.
+#[derive(Debug, Default)]
+pub struct RecorderStats {
+    pub written: AtomicU64,
+    pub dropped: AtomicU64,
+    /// Set when the writer failed; the message is in `Recorder::finish`.
+    pub failed: std::sync::atomic::AtomicBool,
+}
+
+/// A recording in progress: a writer thread fed through a bounded queue.
+pub struct Recorder {
+    sender: Option<SyncSender<FramePair>>,
+    thread: Option<JoinHandle<Result<u64, RecordError>>>,
+    stats: Arc<RecorderStats>,
+    dir: PathBuf,
+}
+
+impl Recorder {
+    pub fn start(
+        dir: &Path,
+        calibration: Option<&StationCalibration>,
+        fps: Option<f64>,
+    ) -> Result<Self, RecordError> {
+        let mut writer = RecordingWriter::create(dir, calibration, fps)?;
+        let (sender, receiver) = sync_channel::<FramePair>(RECORD_QUEUE);
+        let stats = Arc::new(RecorderStats::default());
+        let st = stats.clone();
+        let thread = std::thread::Builder::new()
+            .name("record".into())
+            .spawn(move || {
+                while let Ok(pair) = receiver.recv() {
+                    if let Err(e) = writer.write_pair(&pair.front, &pair.side) {
+                        st.failed.store(true, Ordering::Relaxed);
+                        return Err(e);
+                    }
+                    st.written.store(writer.frames_written(), Ordering::Relaxed);
+                }
+                Ok(writer.frames_written())
+            })
+            .map_err(io_err(dir))?;
+        Ok(Recorder {
+            sender: Some(sender),
+            thread: Some(thread),
+            stats,
+            dir: dir.to_path_buf(),
+        })
+    }
+
+    /// Queues a pair without waiting; a full queue drops it.
+    pub fn push(&self, pair: &FramePair) {
+        if let Some(s) = &self.sender {
+            match s.try_send(pair.clone()) {
+                Ok(()) => {}
+                Err(TrySendError::Full(_)) | Err(TrySendError::Disconnected(_)) => {
+                    self.stats.dropped.fetch_add(1, Ordering::Relaxed);
+                }
+            }
+        }
+    }
+
+    pub fn stats(&self) -> &RecorderStats {
+        &self.stats
+    }
+
+    pub fn dir(&self) -> &Path {
+        &self.dir
+    }
+
+    /// Stops, waits for the queue to drain; returns the pairs written.
+    pub fn finish(mut self) -> Result<u64, RecordError> {
+        self.sender.take();
+        match self.thread.take().map(|t| t.join()) {
+            Some(Ok(r)) => r,
+            Some(Err(_)) => Err(RecordError::Encode {
+                path: self.dir.clone(),
+                msg: "the writer thread panicked".into(),
+            }),
+            None => Ok(0),
+        }
+    }
+}
+
+impl Drop for Recorder {
+    fn drop(&mut self) {
+        self.sender.take();
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::app::demo::demo_calibration;
+
+    fn tmp(name: &str) -> PathBuf {
+        let d =
+            std::env::temp_dir().join(format!("fitstation-record-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        d
+    }
+
+    #[test]
+    fn writes_the_recording_layout_and_reads_back() {
+        let dir = tmp("layout");
+        let cal = demo_calibration();
+        let rec = Recorder::start(&dir, Some(&cal), Some(30.0)).expect("start");
+        for i in 0..3u8 {
+            let f = RgbImage::from_pixel(8, 6, image::Rgb([i, 2 * i, 3 * i]));
+            let s = RgbImage::from_pixel(8, 6, image::Rgb([100 + i, 0, 0]));
+            rec.push(&FramePair {
+                index: 50 + i as u64,
+                timestamp_s: 0.0,
+                front: f,
+                side: s,
+            });
+        }
+        let n = rec.finish().expect("finish");
+        assert_eq!(n, 3);
+        for i in 0..3u8 {
+            let f = image::open(dir.join("front").join(format!("{:06}.png", i)))
+                .expect("front png")
+                .to_rgb8();
+            assert_eq!(f.get_pixel(3, 3), &image::Rgb([i, 2 * i, 3 * i]));
+            let s = image::open(dir.join("side").join(format!("{:06}.png", i)))
+                .expect("side png")
+                .to_rgb8();
+            assert_eq!(s.get_pixel(0, 0), &image::Rgb([100 + i, 0, 0]));
+        }
+        let back =
+            StationCalibration::load(&dir.join("station.yaml")).expect("station.yaml reads back");
+        assert_eq!(back.front.intrinsics.width, cal.front.intrinsics.width);
+        assert!(std::fs::read_to_string(dir.join("recording.yaml"))
+            .expect("meta")
+            .contains("fps: 30"));
+        // A second recording into the same folder is refused.
+        assert!(matches!(
+            RecordingWriter::create(&dir, None, None),
+            Err(RecordError::NotEmpty(_))
+        ));
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}

@@ -1,0 +1,323 @@
+//! The screen's pipeline threads: `capture` pulls frame pairs from the [`FrameSource`]
+//! (paced to its nominal frame rate, paused/stepped by the operator, feeding the
+//! recorder), a newest-wins [`LatestSlot`] hands them to `process` (the
+//! [`FrameProcessor`]), whose [`FitSnapshot`]s go to another slot the screen reads.
+//!
+//! The screen never waits for either thread; a slow processor drops frames (counted),
+//! a disconnected camera is shown and retried; a source that ends leaves the last
+//! snapshot on screen.
+
+use super::record::Recorder;
+use crate::pipeline::timing::TimingStats;
+use crate::pipeline::{
+    FitSnapshot, FramePair, FrameProcessor, FrameSource, LatestSlot, SourceError,
+};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+/// How long the capture thread sleeps while paused or after a disconnect.
+const PAUSED_POLL: Duration = Duration::from_millis(15);
+const RECONNECT_POLL: Duration = Duration::from_millis(250);
+
+/// What the capture thread last reported about its source.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct SourceStatus {
+    /// A problem to show (disconnected camera, skipped frame), cleared by the next pair.
+    pub problem: Option<String>,
+    /// A finite source reached its end.
+    pub ended: bool,
+    /// The source failed for good.
+    pub failed: bool,
+    pub pairs: u64,
+    pub last_index: Option<u64>,
+}
+
+/// Shared switches between the screen and the pipeline threads.
+#[derive(Default)]
+pub struct Controls {
+    pub paused: AtomicBool,
+    /// Pairs to let through while paused (the "step" button).
+    pub steps: AtomicU64,
+    /// Ask the processor to forget the subject before its next frame.
+    pub reset_subject: AtomicBool,
+    pub stop: AtomicBool,
+    /// Times the capture thread found itself paused with no step to take.
+    pub pause_polls: AtomicU64,
+    pub recorder: Mutex<Option<Recorder>>,
+    pub status: Mutex<SourceStatus>,
+    /// Durations of `source` (reading one pair) and `process` (one snapshot), ms.
+    pub stats: Mutex<TimingStats>,
+}
+
+impl Controls {
+    pub fn status(&self) -> SourceStatus {
+        self.status.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+    /// Median/p95 of the pipeline threads' own work.
+    pub fn thread_stats(&self) -> TimingStats {
+        self.stats.lock().map(|s| s.clone()).unwrap_or_default()
+    }
+    fn add_stat(&self, stage: &str, since: Instant) {
+        if let Ok(mut s) = self.stats.lock() {
+            s.add(stage, since.elapsed().as_secs_f64() * 1e3);
+        }
+    }
+    fn with_status(&self, f: impl FnOnce(&mut SourceStatus)) {
+        if let Ok(mut s) = self.status.lock() {
+            f(&mut s);
+        }
+    }
+}
+
+/// The running threads; dropping it stops them.
+pub struct Runner {
+    pub controls: Arc<Controls>,
+    pub snapshots: Arc<LatestSlot<FitSnapshot>>,
+    pairs: Arc<LatestSlot<FramePair>>,
+    process: Option<JoinHandle<()>>,
+}
+
+impl Runner {
+    /// Starts both threads; `notify` is called after each new snapshot (repaint).
+    pub fn start(
+        mut source: Box<dyn FrameSource>,
+        mut processor: Box<dyn FrameProcessor>,
+        notify: Box<dyn Fn() + Send>,
+    ) -> std::io::Result<Self> {
+        let controls = Arc::new(Controls::default());
+        let pairs = Arc::new(LatestSlot::<FramePair>::new());
+        let snapshots = Arc::new(LatestSlot::<FitSnapshot>::new());
+        let fps = source.fps().filter(|f| f.is_finite() && *f > 0.0);
+        {
+            let controls = controls.clone();
+            let pairs = pairs.clone();
+            // Detached: a camera read may block; the thread ends at its next iteration.
+            std::thread::Builder::new()
+                .name("capture".into())
+                .spawn(move || {
+                    let period = fps.map(|f| Duration::from_secs_f64(1.0 / f));
+                    let mut next_due = Instant::now();
+                    while !controls.stop.load(Ordering::Relaxed) {
+                        if controls.paused.load(Ordering::Relaxed) {
+                            let stepped = controls
+                                .steps
+                                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |s| {
+                                    s.checked_sub(1)
+                                })
+                                .is_ok();
+                            if !stepped {
+                                controls.pause_polls.fetch_add(1, Ordering::SeqCst);
+                                std::thread::sleep(PAUSED_POLL);
+                                next_due = Instant::now();
+                                continue;
+                            }
+                        }
+                        let t0 = Instant::now();
+                        match source.next_pair() {
+                            Ok(Some(pair)) => {
+                                controls.add_stat("source", t0);
+                                if let Ok(r) = controls.recorder.lock() {
+                                    if let Some(r) = r.as_ref() {
+                                        r.push(&pair);
+                                    }
+                                }
+                                controls.with_status(|s| {
+                                    s.problem = None;
+                                    s.pairs += 1;
+                                    s.last_index = Some(pair.index);
+                                });
+                                pairs.put(pair);
+                            }
+                            Ok(None) => {
+                                controls.with_status(|s| s.ended = true);
+                                break;
+                            }
+                            Err(SourceError::Skipped(m)) => controls
+                                .with_status(|s| s.problem = Some(format!("frame skipped: {m}"))),
+                            Err(SourceError::Disconnected(m)) => {
+                                controls.with_status(|s| {
+                                    s.problem = Some(format!(
+                                        "camera disconnected: {m} (waiting for it to come back)"
+                                    ))
+                                });
+                                std::thread::sleep(RECONNECT_POLL);
+                            }
+                            Err(SourceError::Fatal(m)) => {
+                                controls.with_status(|s| {
+                                    s.problem = Some(m);
+                                    s.failed = true;
+                                });
+                                break;
+                            }
+                        }
+                        if let Some(p) = period {
+                            next_due += p;
+                            let now = Instant::now();
+                            if next_due > now {
+                                std::thread::sleep(next_due - now);
+                            } else if now - next_due > p * 4 {
+                                // Far behind (a slow source): do not try to catch up.
+                                next_due = now;
+                            }
+                        }
+                    }
+                    pairs.close();
+                })?;
+        }
+        let process = {
+            let controls = controls.clone();
+            let pairs = pairs.clone();
+            let snapshots = snapshots.clone();
+            std::thread::Builder::new()
+                .name("process".into())
+                .spawn(move || {
+                    while let Some(pair) = pairs.take() {
+                        if controls.stop.load(Ordering::Relaxed) {
+                            break;
+                        }
+                        if controls.reset_subject.swap(false, Ordering::Relaxed) {
+                            processor.reset_subject();
+                        }
+                        let t0 = Instant::now();
+                        let snap = processor.process(&pair);
+                        controls.add_stat("process", t0);
+                        snapshots.put(snap);
+                        notify();
+                    }
+                    snapshots.close();
+                })?
+        };
+        Ok(Runner {
+            controls,
+            snapshots,
+            pairs,
+            process: Some(process),
+        })
+    }
+
+    /// Pairs the processor could not keep up with.
+    pub fn dropped_pairs(&self) -> u64 {
+        self.pairs.dropped()
+    }
+}
+
+impl Drop for Runner {
+    fn drop(&mut self) {
+        self.controls.stop.store(true, Ordering::Relaxed);
+        self.pairs.close();
+        if let Some(p) = self.process.take() {
+            let _ = p.join();
+        }
+        if let Ok(mut r) = self.controls.recorder.lock() {
+            if let Some(r) = r.take() {
+                let _ = r.finish();
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::StationCalibration;
+    use crate::pipeline::Phase;
+
+    struct Counting {
+        n: u64,
+        end: u64,
+        fail_at: Option<u64>,
+    }
+    impl FrameSource for Counting {
+        fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
+            if Some(self.n) == self.fail_at {
+                self.fail_at = None;
+                return Err(SourceError::Disconnected("unplugged".into()));
+            }
+            if self.n >= self.end {
+                return Ok(None);
+            }
+            self.n += 1;
+            let img = image::RgbImage::new(2, 2);
+            Ok(Some(FramePair {
+                index: self.n - 1,
+                timestamp_s: 0.0,
+                front: img.clone(),
+                side: img,
+            }))
+        }
+        fn calibration(&self) -> Option<&StationCalibration> {
+            None
+        }
+        fn describe(&self) -> String {
+            "counting".into()
+        }
+    }
+    struct Echo;
+    impl FrameProcessor for Echo {
+        fn process(&mut self, pair: &FramePair) -> FitSnapshot {
+            FitSnapshot::empty(pair.index, Phase::WaitingForSubject)
+        }
+    }
+
+    #[test]
+    fn runs_to_the_end_through_a_disconnect() {
+        let r = Runner::start(
+            Box::new(Counting {
+                n: 0,
+                end: 20,
+                fail_at: Some(5),
+            }),
+            Box::new(Echo),
+            Box::new(|| {}),
+        )
+        .expect("threads");
+        let mut last = None;
+        while let Some(s) = r.snapshots.take() {
+            last = Some(s.frame_index);
+        }
+        assert_eq!(last, Some(19));
+        let st = r.controls.status();
+        assert!(st.ended && !st.failed);
+        assert_eq!(st.pairs, 20);
+    }
+
+    /// Waits until the capture thread has gone round its paused loop after `after`
+    /// polls: everything it started before is then finished.
+    fn wait_for_pause_poll(c: &Controls, after: u64) {
+        for _ in 0..20_000 {
+            if c.pause_polls.load(Ordering::SeqCst) > after {
+                return;
+            }
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        panic!("the capture thread never paused");
+    }
+
+    #[test]
+    fn paused_source_only_steps() {
+        let r = Runner::start(
+            Box::new(Counting {
+                n: 0,
+                end: u64::MAX,
+                fail_at: None,
+            }),
+            Box::new(Echo),
+            Box::new(|| {}),
+        );
+        let r = r.expect("threads");
+        let c = &r.controls;
+        c.paused.store(true, Ordering::SeqCst);
+        wait_for_pause_poll(c, c.pause_polls.load(Ordering::SeqCst));
+        let before = c.status().pairs;
+        c.steps.store(3, Ordering::SeqCst);
+        while c.steps.load(Ordering::SeqCst) > 0 {
+            std::thread::sleep(Duration::from_millis(1));
+        }
+        // The last step's pair is complete once the thread polls the pause again.
+        wait_for_pause_poll(c, c.pause_polls.load(Ordering::SeqCst));
+        assert_eq!(c.status().pairs, before + 3);
+        assert!(!c.status().ended);
+    }
+}

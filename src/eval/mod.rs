@@ -1,0 +1,583 @@
+//! Evaluation of fits against synthetic ground truth (`fitstation eval`).
+//!
+//! A fit result (the `avatar.obj` and `report.json` of formats.md "What a fit writes")
+//! is compared with the truth folder of its recording (`<recording>.truth/`, written by
+//! [`crate::synth`]): per measurement the signed error (fitted - true), the surface
+//! distance from the fitted vertices to the true surface, mask IoU when the result holds
+//! masks, landmark errors when the report holds landmarks, and the stage timings the
+//! report carries. [`evaluate`] scores one result; [`EvalTable`] aggregates rows.
+//!
+//! # Conventions
+//! - Meshes in metres in the station frame; errors and distances in millimetres;
+//!   girth profiles are convex hull perimeters of horizontal sections (formats.md).
+//! - `report.json` landmarks, when present: `"landmarks": {"name": [x, y, z]}` in
+//!   metres, station frame (objects `{"x":..,"y":..,"z":..}` are accepted too).
+//! - Result masks, when present: `<result>/masks/{front,side}/NNNNNN.png` (nonzero =
+//!   body), the same layout as the truth.
+
+pub mod distance;
+pub mod html;
+
+use crate::mesh::io::read_obj;
+use crate::mesh::section::{hull_perimeter, slice, Plane};
+use crate::mesh::TriMesh;
+use crate::synth::{load_truth, Truth};
+use distance::{surface_distance, SurfaceDistance};
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Heights sampled for the girth profiles.
+pub const PROFILE_SAMPLES: usize = 80;
+
+/// Errors of the evaluation.
+#[derive(Debug, thiserror::Error)]
+pub enum EvalError {
+    #[error("{path}: {source}")]
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{0}")]
+    Mesh(#[from] crate::mesh::io::MeshIoError),
+    #[error("{0}")]
+    Truth(#[from] crate::synth::SynthError),
+    #[error("{path}: {msg}")]
+    Invalid { path: PathBuf, msg: String },
+}
+
+/// A fit to be scored: the avatar and its report (formats.md "What a fit writes").
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    pub avatar: TriMesh,
+    pub report_json: serde_json::Value,
+    /// Folder holding `masks/{front,side}/NNNNNN.png`, if the fit wrote masks.
+    pub masks_dir: Option<PathBuf>,
+}
+
+impl FitResult {
+    /// A fit held in memory (e.g. from `replay`), without masks.
+    pub fn new(avatar: TriMesh, report_json: serde_json::Value) -> FitResult {
+        FitResult {
+            avatar,
+            report_json,
+            masks_dir: None,
+        }
+    }
+
+    /// Loads `dir/avatar.obj` and `dir/report.json`.
+    pub fn load(dir: &Path) -> Result<FitResult, EvalError> {
+        let avatar = read_obj(&dir.join("avatar.obj"), None)?;
+        let p = dir.join("report.json");
+        let text = std::fs::read_to_string(&p).map_err(|source| EvalError::Io {
+            path: p.clone(),
+            source,
+        })?;
+        let report_json = serde_json::from_str(&text).map_err(|e| EvalError::Invalid {
+            path: p,
+            msg: e.to_string(),
+        })?;
+        let masks = dir.join("masks");
+        Ok(FitResult {
+            avatar,
+            report_json,
+            masks_dir: masks.is_dir().then_some(masks),
+        })
+    }
+}
+
+/// One measurement compared.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeasurementCompare {
+    pub name: String,
+    pub true_mm: f64,
+    /// None when the report lacks it.
+    pub fitted_mm: Option<f64>,
+    /// fitted - true.
+    pub error_mm: Option<f64>,
+}
+
+/// Median and 95th percentile of a stage's time, milliseconds.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct StageTiming {
+    pub median: f64,
+    pub p95: f64,
+}
+
+/// A girth profile sample: height and the largest section's hull perimeter of the
+/// true and fitted bodies (None where a body has no section).
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct ProfileSample {
+    pub height_m: f64,
+    pub true_mm: Option<f64>,
+    pub fitted_mm: Option<f64>,
+}
+
+/// The score of one fit against its truth.
+#[derive(Debug, Clone, Serialize)]
+pub struct EvalRow {
+    pub subject: String,
+    pub measurements: Vec<MeasurementCompare>,
+    pub surface: Option<SurfaceDistance>,
+    /// Mean mask IoU per view over the frames both hold.
+    pub mask_iou: BTreeMap<String, f64>,
+    /// Landmark error (3-D distance), millimetres.
+    pub landmark_error_mm: BTreeMap<String, f64>,
+    pub timings_ms: BTreeMap<String, StageTiming>,
+    pub profile: Vec<ProfileSample>,
+}
+
+/// Scores `result` against the truth in `truth_dir`.
+///
+/// # Errors
+/// Unreadable truth (truth.json, mesh.obj) or result masks.
+pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalError> {
+    let truth = load_truth(truth_dir)?;
+    let true_mesh = read_obj(&truth_dir.join("mesh.obj"), None)?;
+    let subject = truth_dir
+        .file_name()
+        .map(|n| {
+            n.to_string_lossy()
+                .trim_end_matches(crate::synth::TRUTH_SUFFIX)
+                .to_string()
+        })
+        .unwrap_or_default();
+    let reported = result
+        .report_json
+        .get("measurements_mm")
+        .and_then(|m| m.as_object());
+    let measurements = truth
+        .measurements_mm
+        .iter()
+        .map(|(name, &t)| {
+            let f = reported.and_then(|m| m.get(name)).and_then(|v| v.as_f64());
+            MeasurementCompare {
+                name: name.clone(),
+                true_mm: t,
+                fitted_mm: f,
+                error_mm: f.map(|f| f - t),
+            }
+        })
+        .collect();
+    let surface = surface_distance(&result.avatar.positions, &true_mesh);
+    let mask_iou = match &result.masks_dir {
+        Some(d) => mask_iou(&truth, truth_dir, d)?,
+        None => BTreeMap::new(),
+    };
+    let landmark_error_mm = landmark_errors(&truth, &result.report_json);
+    let timings_ms = timings(&result.report_json);
+    let profile = girth_profile(&true_mesh, &result.avatar);
+    Ok(EvalRow {
+        subject,
+        measurements,
+        surface,
+        mask_iou,
+        landmark_error_mm,
+        timings_ms,
+        profile,
+    })
+}
+
+fn mask_iou(
+    truth: &Truth,
+    truth_dir: &Path,
+    result_masks: &Path,
+) -> Result<BTreeMap<String, f64>, EvalError> {
+    let mut out = BTreeMap::new();
+    for view in ["front", "side"] {
+        let (mut sum, mut n) = (0.0, 0usize);
+        for f in truth.per_frame.iter().filter(|f| f.subject) {
+            let name = format!("{:06}.png", f.index);
+            let rp = result_masks.join(view).join(&name);
+            if !rp.is_file() {
+                continue;
+            }
+            let tp = truth_dir.join("masks").join(view).join(&name);
+            let load = |p: &Path| {
+                image::open(p)
+                    .map(|i| i.to_luma8())
+                    .map_err(|e| EvalError::Invalid {
+                        path: p.to_path_buf(),
+                        msg: e.to_string(),
+                    })
+            };
+            let (t, r) = (load(&tp)?, load(&rp)?);
+            if t.dimensions() != r.dimensions() {
+                return Err(EvalError::Invalid {
+                    path: rp,
+                    msg: "mask size differs from the frame size".into(),
+                });
+            }
+            let (mut inter, mut uni) = (0usize, 0usize);
+            for (a, b) in t.as_raw().iter().zip(r.as_raw()) {
+                let (a, b) = (*a > 127, *b > 127);
+                inter += (a && b) as usize;
+                uni += (a || b) as usize;
+            }
+            if uni > 0 {
+                sum += inter as f64 / uni as f64;
+                n += 1;
+            }
+        }
+        if n > 0 {
+            out.insert(view.to_string(), sum / n as f64);
+        }
+    }
+    Ok(out)
+}
+
+fn json_point(v: &serde_json::Value) -> Option<[f64; 3]> {
+    if let Some(a) = v.as_array() {
+        if a.len() == 3 {
+            return Some([a[0].as_f64()?, a[1].as_f64()?, a[2].as_f64()?]);
+        }
+        return None;
+    }
+    let o = v.as_object()?;
+    Some([
+        o.get("x")?.as_f64()?,
+        o.get("y")?.as_f64()?,
+        o.get("z")?.as_f64()?,
+    ])
+}
+
+fn landmark_errors(truth: &Truth, report: &serde_json::Value) -> BTreeMap<String, f64> {
+    let mut out = BTreeMap::new();
+    let Some(lm) = report.get("landmarks").and_then(|l| l.as_object()) else {
+        return out;
+    };
+    for (name, t) in &truth.landmarks {
+        if let Some(p) = lm.get(name).and_then(json_point) {
+            let d = ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2) + (p[2] - t[2]).powi(2)).sqrt();
+            out.insert(name.clone(), d * 1000.0);
+        }
+    }
+    out
+}
+
+fn timings(report: &serde_json::Value) -> BTreeMap<String, StageTiming> {
+    let mut out = BTreeMap::new();
+    let Some(t) = report.get("timings_ms").and_then(|t| t.as_object()) else {
+        return out;
+    };
+    for (stage, v) in t {
+        let median = v.get("median").and_then(|x| x.as_f64());
+        let p95 = v.get("p95").and_then(|x| x.as_f64());
+        if let (Some(median), Some(p95)) = (median, p95) {
+            out.insert(stage.clone(), StageTiming { median, p95 });
+        } else if let Some(x) = v.as_f64() {
+            out.insert(stage.clone(), StageTiming { median: x, p95: x });
+        }
+    }
+    out
+}
+
+/// Area of a loop's bounding box (loops left open by small holes still count).
+fn box_area(l: &crate::mesh::section::SectionLoop) -> f64 {
+    crate::synth::subject::loop_box_area(l)
+}
+
+/// Largest-section hull perimeter against height for both bodies, from just above the
+/// soles to just below the top of the true body.
+pub fn girth_profile(truth: &TriMesh, fitted: &TriMesh) -> Vec<ProfileSample> {
+    let Some(b) = truth.bounds() else {
+        return Vec::new();
+    };
+    let girth = |m: &TriMesh, y: f64| -> Option<f64> {
+        slice(m, &Plane::horizontal(y))
+            .into_iter()
+            .filter(|l| l.points.len() > 2)
+            .max_by(|a, b| box_area(a).total_cmp(&box_area(b)))
+            .map(|l| hull_perimeter(&l.points) * 1000.0)
+    };
+    (0..PROFILE_SAMPLES)
+        .map(|i| {
+            let y = b.min.y + b.size().y * (0.02 + 0.94 * i as f64 / (PROFILE_SAMPLES - 1) as f64);
+            ProfileSample {
+                height_m: y,
+                true_mm: girth(truth, y),
+                fitted_mm: girth(fitted, y),
+            }
+        })
+        .collect()
+}
+
+/// Per-measurement aggregate over subjects, millimetres.
+#[derive(Debug, Clone, Serialize)]
+pub struct MeasurementSummary {
+    pub name: String,
+    pub subjects: usize,
+    pub mean_abs_error_mm: f64,
+    pub mean_bias_mm: f64,
+    /// The error of largest magnitude (signed).
+    pub worst_error_mm: f64,
+    pub worst_subject: String,
+}
+
+/// Rows and their summary.
+#[derive(Debug, Clone, Serialize, Default)]
+pub struct EvalTable {
+    pub rows: Vec<EvalRow>,
+    pub failures: Vec<String>,
+}
+
+impl EvalTable {
+    /// Per-measurement MAE, bias and worst error (subjects whose report has it).
+    pub fn summary(&self) -> Vec<MeasurementSummary> {
+        let mut by: BTreeMap<String, Vec<(f64, &str)>> = BTreeMap::new();
+        for r in &self.rows {
+            for m in &r.measurements {
+                if let Some(e) = m.error_mm {
+                    by.entry(m.name.clone()).or_default().push((e, &r.subject));
+                }
+            }
+        }
+        by.into_iter()
+            .map(|(name, es)| {
+                let n = es.len() as f64;
+                let worst = es
+                    .iter()
+                    .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
+                    .copied()
+                    .unwrap_or((0.0, ""));
+                MeasurementSummary {
+                    name,
+                    subjects: es.len(),
+                    mean_abs_error_mm: es.iter().map(|e| e.0.abs()).sum::<f64>() / n,
+                    mean_bias_mm: es.iter().map(|e| e.0).sum::<f64>() / n,
+                    worst_error_mm: worst.0,
+                    worst_subject: worst.1.to_string(),
+                }
+            })
+            .collect()
+    }
+
+    /// Stage timings over subjects: median of the medians and the largest p95.
+    pub fn timing_summary(&self) -> BTreeMap<String, StageTiming> {
+        let mut by: BTreeMap<String, Vec<StageTiming>> = BTreeMap::new();
+        for r in &self.rows {
+            for (s, t) in &r.timings_ms {
+                by.entry(s.clone()).or_default().push(*t);
+            }
+        }
+        by.into_iter()
+            .map(|(s, mut ts)| {
+                ts.sort_by(|a, b| a.median.total_cmp(&b.median));
+                let median = ts[ts.len() / 2].median;
+                let p95 = ts.iter().map(|t| t.p95).fold(f64::NEG_INFINITY, f64::max);
+                (s, StageTiming { median, p95 })
+            })
+            .collect()
+    }
+
+    /// The plain-text table.
+    pub fn to_text(&self) -> String {
+        let mut s = String::new();
+        let names: Vec<String> = {
+            let mut v: Vec<String> = self
+                .rows
+                .iter()
+                .flat_map(|r| r.measurements.iter().map(|m| m.name.clone()))
+                .collect();
+            v.sort();
+            v.dedup();
+            v
+        };
+        s.push_str(&format!("{:<16}", "error (mm)"));
+        for n in &names {
+            s.push_str(&format!(" {:>12}", short(n)));
+        }
+        s.push_str(&format!(
+            " {:>9} {:>9} {:>7} {:>7}\n",
+            "surf mean", "surf p95", "IoU f", "IoU s"
+        ));
+        for r in &self.rows {
+            s.push_str(&format!("{:<16}", clip(&r.subject, 16)));
+            for n in &names {
+                let e = r
+                    .measurements
+                    .iter()
+                    .find(|m| &m.name == n)
+                    .and_then(|m| m.error_mm);
+                s.push_str(&format!(
+                    " {:>12}",
+                    e.map_or("-".into(), |e| format!("{e:+.1}"))
+                ));
+            }
+            let sd = r.surface.map_or(("-".into(), "-".into()), |d| {
+                (format!("{:.1}", d.mean_mm), format!("{:.1}", d.p95_mm))
+            });
+            let iou = |v: &str| r.mask_iou.get(v).map_or("-".into(), |x| format!("{x:.3}"));
+            s.push_str(&format!(
+                " {:>9} {:>9} {:>7} {:>7}\n",
+                sd.0,
+                sd.1,
+                iou("front"),
+                iou("side")
+            ));
+        }
+        s.push_str("\nper measurement        subjects   MAE mm  bias mm  worst mm  (subject)\n");
+        for m in self.summary() {
+            s.push_str(&format!(
+                "{:<22} {:>8} {:>8.1} {:>8.1} {:>9.1}  ({})\n",
+                m.name,
+                m.subjects,
+                m.mean_abs_error_mm,
+                m.mean_bias_mm,
+                m.worst_error_mm,
+                m.worst_subject
+            ));
+        }
+        let lm: Vec<(&String, f64)> = {
+            let mut by: BTreeMap<&String, Vec<f64>> = BTreeMap::new();
+            for r in &self.rows {
+                for (k, v) in &r.landmark_error_mm {
+                    by.entry(k).or_default().push(*v);
+                }
+            }
+            by.into_iter()
+                .map(|(k, v)| (k, v.iter().sum::<f64>() / v.len() as f64))
+                .collect()
+        };
+        if !lm.is_empty() {
+            s.push_str("\nlandmark               mean error mm\n");
+            for (k, v) in lm {
+                s.push_str(&format!("{k:<22} {v:>8.1}\n"));
+            }
+        }
+        let t = self.timing_summary();
+        if !t.is_empty() {
+            s.push_str("\nstage                  median ms   worst p95 ms\n");
+            for (k, v) in t {
+                s.push_str(&format!("{k:<22} {:>9.2} {:>8.2}\n", v.median, v.p95));
+            }
+        }
+        for f in &self.failures {
+            s.push_str(&format!("FAILED: {f}\n"));
+        }
+        s
+    }
+}
+
+fn short(name: &str) -> String {
+    clip(
+        &name
+            .replace("_girth", "")
+            .replace("thigh_left", "thigh_l")
+            .replace("thigh_right", "thigh_r"),
+        12,
+    )
+}
+
+fn clip(s: &str, n: usize) -> String {
+    s.chars().take(n).collect()
+}
+
+/// `fitstation eval`: score fits of recordings against their ground truth.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EvalArgs {
+    /// Recording folders (each with its `<recording>.truth/` beside it).
+    #[arg(required = true)]
+    pub recordings: Vec<PathBuf>,
+    /// Print JSON instead of the table.
+    #[arg(long)]
+    pub json: bool,
+    /// Fit results to score: a folder with avatar.obj + report.json (one recording), or
+    /// a folder holding one such folder per recording name.
+    #[arg(long)]
+    pub result: Option<PathBuf>,
+    /// Also write an HTML report (index.html) into this folder.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+}
+
+/// A way to obtain a fit for a recording (the lead plugs `replay` in here).
+pub type FitSource<'a> = dyn FnMut(&Path) -> anyhow::Result<FitResult> + 'a;
+
+/// The result folder of `recording` under `--result DIR`.
+pub fn result_dir_for(result: &Path, recording: &Path) -> PathBuf {
+    if result.join("avatar.obj").is_file() {
+        return result.to_path_buf();
+    }
+    result.join(recording.file_name().unwrap_or_default())
+}
+
+/// Runs `fitstation eval` with results from `--result`.
+pub fn run(args: EvalArgs) -> anyhow::Result<()> {
+    let Some(result) = args.result.clone() else {
+        anyhow::bail!("no fit to score: pass --result DIR (a folder with avatar.obj and report.json); replaying recordings through the fit is not wired in yet");
+    };
+    let mut source = |rec: &Path| -> anyhow::Result<FitResult> {
+        Ok(FitResult::load(&result_dir_for(&result, rec))?)
+    };
+    run_with(&args, &mut source)
+}
+
+/// Runs the evaluation with fits from `fit` (one call per recording).
+pub fn run_with(args: &EvalArgs, fit: &mut FitSource<'_>) -> anyhow::Result<()> {
+    let mut table = EvalTable::default();
+    let mut thumbs = Vec::new();
+    let n = args.recordings.len();
+    for (i, rec) in args.recordings.iter().enumerate() {
+        progress(i, n, rec);
+        let tdir = crate::synth::truth_dir(rec);
+        let scored = fit(rec).and_then(|r| Ok((evaluate(&tdir, &r)?, r)));
+        match scored {
+            Ok((row, r)) => {
+                if args.report.is_some() {
+                    thumbs.push(
+                        html::overlay_thumbnails(rec, &tdir, &r.avatar).unwrap_or_else(|e| {
+                            table
+                                .failures
+                                .push(format!("{}: thumbnails: {e}", rec.display()));
+                            Vec::new()
+                        }),
+                    );
+                }
+                table.rows.push(row);
+            }
+            Err(e) => table.failures.push(format!("{}: {e:#}", rec.display())),
+        }
+    }
+    progress(n, n, Path::new(""));
+    if args.json {
+        let v = serde_json::json!({ "rows": table.rows, "summary": table.summary(),
+            "timings_ms": table.timing_summary(), "failures": table.failures });
+        println!("{}", serde_json::to_string_pretty(&v)?);
+    } else {
+        print!("{}", table.to_text());
+    }
+    if let Some(dir) = &args.report {
+        std::fs::create_dir_all(dir)?;
+        let p = dir.join("index.html");
+        std::fs::write(&p, html::report(&table, &thumbs))?;
+        eprintln!("report: {}", p.display());
+    }
+    anyhow::ensure!(!table.rows.is_empty(), "no recording could be scored");
+    Ok(())
+}
+
+/// A plain stderr progress bar.
+fn progress(i: usize, n: usize, current: &Path) {
+    const WIDTH: usize = 30;
+    if n < 2 {
+        return;
+    }
+    let filled = WIDTH * i / n;
+    let mut e = std::io::stderr();
+    let _ = write!(
+        e,
+        "\r[{}{}] {i}/{n} {:<40}",
+        "#".repeat(filled),
+        " ".repeat(WIDTH - filled),
+        current
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    );
+    if i == n {
+        let _ = writeln!(e);
+    }
+    let _ = e.flush();
+}

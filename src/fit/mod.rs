@@ -1,0 +1,525 @@
+//! The fit: from two silhouettes to an avatar and its measurements (method.md section 3).
+//!
+//! First fit of a subject:
+//! 1. **Candidate** ([`shape`]): the library body whose torso/thigh descriptor is nearest
+//!    to the silhouettes' (all library bodies, precomputed), then Gauss-Newton on its macro
+//!    parameters; scaled to the observed stature and placed where the subject stands.
+//! 2. **Pose synchronisation** ([`pose`]): arms and legs rotated about the shoulder and
+//!    hip joints (linear blend skinning) to the angles seen in the front view.
+//! 3. **Correspondence** ([`correspond`]): control vertices with left/right/front/back
+//!    status and their targets on the silhouettes, either variant.
+//! 4. **Refit**: the mean value deformer moves the controls to their targets while every
+//!    other vertex keeps its mean value encoding; head, hands and feet are then put back
+//!    rigidly (best rigid fit of their rest shape).
+//!
+//! Later frames warm-start: same candidate and controls, new targets, a warm solve.
+//!
+//! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
+
+pub mod correspond;
+pub mod parts;
+pub mod pose;
+pub mod shape;
+
+use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
+use crate::camera::StationCalibration;
+use crate::deform::{DecodeOptions, DecoderKind, MvcDeformer};
+use crate::mesh::TriMesh;
+use correspond::{ControlSet, MaskRef, Part, SearchOptions, TargetStats, Variant};
+use glam::DVec3;
+use std::sync::Arc;
+
+/// Gauss-Newton steps of one decode (a warm refit is one decode; convergence continues
+/// over the following frames).
+const DECODE_ITERATIONS_PER_SOLVE: usize = 8;
+/// Decodes per correspondence round of a first fit.
+const FIRST_FIT_SOLVES: usize = 4;
+
+/// Height (fraction of stature) at which the candidate is placed on the silhouettes.
+const PLACEMENT_LEVEL: f64 = 0.55;
+
+/// Options of the fit.
+#[derive(Debug, Clone)]
+pub struct FitOptions {
+    pub variant: Variant,
+    pub decoder: DecoderKind,
+    /// Refine the candidate's macro parameters (Gauss-Newton) after the library search.
+    pub refine_shape: bool,
+    /// Gauss-Newton iterations of the shape refinement.
+    pub shape_iterations: usize,
+    /// Correspondence/solve rounds of the first fit (targets are recomputed each round).
+    pub first_fit_rounds: usize,
+    pub search: SearchOptions,
+    /// Number of library bodies the candidate is chosen from.
+    pub library_size: usize,
+}
+
+impl Default for FitOptions {
+    fn default() -> Self {
+        FitOptions {
+            variant: Variant::PerspectiveRim,
+            decoder: DecoderKind::FastGaussNewton,
+            refine_shape: true,
+            shape_iterations: 4,
+            first_fit_rounds: 3,
+            search: SearchOptions::default(),
+            library_size: 252,
+        }
+    }
+}
+
+/// What the fitter needs to know besides the silhouettes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Observation {
+    /// Stature (typed by the operator, or from the silhouettes), metres.
+    pub stature_m: f64,
+    /// A point inside the torso at about hip height (station frame).
+    pub torso_point: DVec3,
+    /// Arm abduction seen in the front view: angle of shoulder -> wrist from straight
+    /// down, radians, left and right (positive = away from the body). None if unknown.
+    pub arm_angles: Option<(f64, f64)>,
+    /// Leg spread seen in the front view: angle of hip -> ankle from straight down.
+    pub leg_angles: Option<(f64, f64)>,
+}
+
+/// Errors of the fit.
+#[derive(Debug, thiserror::Error)]
+pub enum FitError {
+    #[error("the silhouettes do not show a torso where the subject should stand")]
+    NoTorso,
+    #[error("too few silhouette correspondences ({found} of {total}): is the subject fully in view of both cameras?")]
+    TooFewTargets { found: usize, total: usize },
+    #[error("deformation failed: {0}")]
+    Deform(String),
+    #[error("body model: {0}")]
+    Body(String),
+}
+
+/// Statistics of one fit.
+#[derive(Debug, Clone, Default, serde::Serialize)]
+pub struct FitStats {
+    pub controls: usize,
+    pub targets: TargetStats,
+    pub decode_iterations: usize,
+    /// Mean distance of the found targets from their vertices after the solve, mm.
+    pub residual_mm: f64,
+    pub warm: bool,
+    pub params: Option<ShapeParams>,
+}
+
+/// Per-subject state kept between frames.
+struct SubjectState {
+    params: ShapeParams,
+    controls: ControlSet,
+    deformer: MvcDeformer,
+    rest: TriMesh,
+    /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
+    pinned: Vec<u32>,
+    positions: Vec<DVec3>,
+}
+
+/// The fitter: owns the library, its descriptors and the subject's state and scratch.
+pub struct Fitter {
+    library: Arc<ShapeLibrary>,
+    opts: FitOptions,
+    template_labels: Vec<Part>,
+    pose_joints: pose::PoseJoints,
+    rigid: Vec<Vec<u32>>,
+    library_params: Vec<ShapeParams>,
+    library_descriptors: Vec<shape::ShapeDescriptor>,
+    subject: Option<SubjectState>,
+    centroids: Vec<DVec3>,
+    targets: Vec<Option<DVec3>>,
+    target_buf: Vec<DVec3>,
+}
+
+impl Fitter {
+    /// Prepares the fitter: part labels of the template and the library's descriptors.
+    pub fn new(library: Arc<ShapeLibrary>, opts: FitOptions) -> Result<Self, FitError> {
+        let template = library.template();
+        let rings = template.mesh.one_rings();
+        let lm = pose::template_part_landmarks(template).map_err(FitError::Body)?;
+        let template_labels = parts::label_parts(&template.mesh, &rings, &lm);
+        let mut library_params = Vec::with_capacity(opts.library_size);
+        let mut library_descriptors = Vec::with_capacity(opts.library_size);
+        let mut buf = Vec::new();
+        for seed in 0..opts.library_size as u64 {
+            let p = ShapeLibrary::sample_adult(seed);
+            library.body_into(&p, &mut buf);
+            library_descriptors.push(shape::mesh_descriptor(&buf, &template_labels));
+            library_params.push(p);
+        }
+        let pose_joints = pose::PoseJoints::new(template);
+        let rigid = pose::rigid_groups(template);
+        Ok(Fitter {
+            pose_joints,
+            rigid,
+            library,
+            opts,
+            template_labels,
+            library_params,
+            library_descriptors,
+            subject: None,
+            centroids: Vec::new(),
+            targets: Vec::new(),
+            target_buf: Vec::new(),
+        })
+    }
+
+    pub fn options(&self) -> &FitOptions {
+        &self.opts
+    }
+
+    /// Forgets the subject (next call fits from nothing).
+    pub fn reset(&mut self) {
+        self.subject = None;
+    }
+
+    pub fn has_subject(&self) -> bool {
+        self.subject.is_some()
+    }
+
+    /// Triangles of the template (and so of every avatar).
+    pub fn template_triangles(&self) -> &[[u32; 3]] {
+        &self.library.template().mesh.triangles
+    }
+
+    /// The template's part labels (#V).
+    pub fn labels(&self) -> &[Part] {
+        &self.template_labels
+    }
+
+    /// Fits (first frame) or refits (later frames) to the two silhouettes. Returns the
+    /// avatar's vertex positions (template order, station frame).
+    pub fn fit(
+        &mut self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        side: MaskRef<'_>,
+        obs: &Observation,
+    ) -> Result<(&[DVec3], FitStats), FitError> {
+        let views = [(&calib.front, front), (&calib.side, side)];
+        let warm = self.subject.is_some();
+        let mut stats = FitStats {
+            warm,
+            ..Default::default()
+        };
+        if !warm {
+            self.first_fit(calib, front, side, obs)?;
+        }
+        let rounds = if warm { 1 } else { self.opts.first_fit_rounds };
+        let Some(s) = self.subject.as_mut() else {
+            return Err(FitError::NoTorso);
+        };
+        for _ in 0..rounds {
+            let ts = correspond::find_targets(
+                &s.positions,
+                &s.controls,
+                views,
+                &self.opts.search,
+                &mut self.centroids,
+                &mut self.targets,
+            );
+            stats.targets = ts;
+            let total = s.controls.controls.len();
+            if ts.found * 4 < total {
+                return Err(FitError::TooFewTargets {
+                    found: ts.found,
+                    total,
+                });
+            }
+            // Controls without a target this frame hold their current position; the rigid
+            // parts hold the candidate's.
+            self.target_buf.clear();
+            for (c, t) in s.controls.controls.iter().zip(&self.targets) {
+                self.target_buf
+                    .push(t.unwrap_or(s.positions[c.vertex as usize]));
+            }
+            self.target_buf
+                .extend(s.pinned.iter().map(|&v| s.rest.positions[v as usize]));
+            let solves = if warm { 1 } else { FIRST_FIT_SOLVES };
+            for _ in 0..solves {
+                let rep = s
+                    .deformer
+                    .solve(&self.target_buf, &mut s.positions)
+                    .map_err(|e| FitError::Deform(e.to_string()))?;
+                stats.decode_iterations += rep.iterations;
+                if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                    eprintln!("decode: {rep:?}");
+                }
+                if rep.converged {
+                    break;
+                }
+            }
+        }
+        // Residual after the solve.
+        let mut sum = 0.0;
+        let mut n = 0usize;
+        for (c, t) in s.controls.controls.iter().zip(&self.targets) {
+            if let Some(t) = t {
+                sum += (s.positions[c.vertex as usize] - *t).length();
+                n += 1;
+            }
+        }
+        stats.residual_mm = if n > 0 { 1e3 * sum / n as f64 } else { 0.0 };
+        stats.controls = s.controls.controls.len();
+        stats.params = Some(s.params.clone());
+        Ok((&s.positions, stats))
+    }
+
+    /// The current avatar as a mesh (template triangles).
+    pub fn avatar(&self) -> Option<TriMesh> {
+        let s = self.subject.as_ref()?;
+        Some(TriMesh::new(
+            s.positions.clone(),
+            self.library.template().mesh.triangles.clone(),
+        ))
+    }
+
+    fn first_fit(
+        &mut self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        side: MaskRef<'_>,
+        obs: &Observation,
+    ) -> Result<(), FitError> {
+        let f = (&calib.front, front);
+        let sd = (&calib.side, side);
+        let observed = shape::observed_descriptor(f, sd, obs.stature_m, obs.torso_point);
+        if observed
+            .torso_width
+            .iter()
+            .filter(|w| w.is_finite())
+            .count()
+            < shape::TORSO_LEVELS.len() / 2
+        {
+            return Err(FitError::NoTorso);
+        }
+        // 1. Library search.
+        let best = self
+            .library_descriptors
+            .iter()
+            .enumerate()
+            .min_by(|a, b| {
+                a.1.distance2(&observed)
+                    .total_cmp(&b.1.distance2(&observed))
+            })
+            .map(|(i, _)| i)
+            .ok_or(FitError::NoTorso)?;
+        let mut params = self.library_params[best].clone();
+        // 2. Gauss-Newton refinement of the macro parameters on the descriptor.
+        if self.opts.refine_shape {
+            params = shape_refine(
+                &self.library,
+                &self.template_labels,
+                params,
+                &observed,
+                self.opts.shape_iterations,
+            );
+        }
+        // 3. Body, scaled to the stature and placed on the subject.
+        let mut body = self.library.body(&params);
+        let stature = body.bounds().map(|b| b.size().y).unwrap_or(1.0).max(1e-3);
+        let k = obs.stature_m / stature;
+        // Place the body so that its torso's centre at the reference height lands on the
+        // silhouettes' section centre there (x from the front view, z from the side).
+        let seen = shape::section_centre(f, sd, PLACEMENT_LEVEL * obs.stature_m, obs.torso_point)
+            .map(|c| c.0)
+            .unwrap_or(obs.torso_point);
+        let own = shape::torso_centre(
+            &body.positions,
+            &self.template_labels,
+            PLACEMENT_LEVEL * stature,
+        )
+        .unwrap_or(DVec3::ZERO);
+        body.map_positions(|p| {
+            DVec3::new(
+                (p.x - own.x) * k + seen.x,
+                p.y * k,
+                (p.z - own.z) * k + seen.z,
+            )
+        });
+        // 4. Pose synchronisation.
+        pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
+        // 5. Controls and deformer on the posed candidate.
+        let step = body.mean_edge_length();
+        let mut excluded = vec![false; body.vertex_count()];
+        for g in &self.rigid {
+            for &v in g {
+                excluded[v as usize] = true;
+            }
+        }
+        let controls = correspond::select_controls(
+            &body,
+            &self.template_labels,
+            &excluded,
+            step,
+            self.opts.variant,
+            &calib.front,
+            &calib.side,
+        );
+        let pinned: Vec<u32> = (0..body.vertex_count() as u32)
+            .filter(|&v| excluded[v as usize])
+            .collect();
+        let mut indices: Vec<u32> = controls.controls.iter().map(|c| c.vertex).collect();
+        indices.extend_from_slice(&pinned);
+        let dopts = DecodeOptions {
+            max_iterations: DECODE_ITERATIONS_PER_SOLVE,
+            ..DecodeOptions::default()
+        };
+        let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts)
+            .map_err(|e| FitError::Deform(e.to_string()))?;
+        deformer
+            .set_controls(&indices)
+            .map_err(|e| FitError::Deform(e.to_string()))?;
+        self.subject = Some(SubjectState {
+            pinned,
+            params,
+            controls,
+            deformer,
+            positions: body.positions.clone(),
+            rest: body,
+        });
+        Ok(())
+    }
+}
+
+/// Gauss-Newton with a finite-difference Jacobian on the shape descriptor over the macro
+/// parameters (gender, muscle, weight, height, proportions, age); they stay in range.
+fn shape_refine(
+    library: &ShapeLibrary,
+    labels: &[Part],
+    start: ShapeParams,
+    observed: &shape::ShapeDescriptor,
+    iterations: usize,
+) -> ShapeParams {
+    const STEP: f64 = 0.02;
+    const DAMPING: f64 = 1e-4;
+    let obs = observed.as_vec();
+    let mut buf = Vec::new();
+    let residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
+        library.body_into(p, buf);
+        let d = shape::mesh_descriptor(buf, labels).as_vec();
+        d.iter()
+            .zip(&obs)
+            .map(|(a, b)| {
+                if a.is_finite() && b.is_finite() {
+                    a - b
+                } else {
+                    0.0
+                }
+            })
+            .collect()
+    };
+    // Age enters normalised to 0..1 over the library's adult range.
+    let age_span = AGE_MAX_YEARS - AGE_MIN_YEARS;
+    let get = |p: &ShapeParams, j: usize| {
+        [
+            p.gender,
+            p.muscle,
+            p.weight,
+            p.height,
+            p.proportions,
+            (p.age_years - AGE_MIN_YEARS) / age_span,
+        ][j]
+    };
+    let set = |p: &mut ShapeParams, j: usize, v: f64| match j {
+        0 => p.gender = v.clamp(0.0, 1.0),
+        1 => p.muscle = v.clamp(0.0, 1.0),
+        2 => p.weight = v.clamp(0.0, 1.0),
+        3 => p.height = v.clamp(0.0, 1.0),
+        4 => p.proportions = v.clamp(0.0, 1.0),
+        _ => p.age_years = AGE_MIN_YEARS + v.clamp(0.0, 1.0) * age_span,
+    };
+    const NP: usize = 6;
+    let mut p = start;
+    let mut r = residual(&p, &mut buf);
+    let cost = |r: &[f64]| r.iter().map(|x| x * x).sum::<f64>();
+    for _ in 0..iterations {
+        let mut jac = vec![[0.0f64; NP]; r.len()];
+        for j in 0..NP {
+            let mut q = p.clone();
+            let h = if get(&p, j) + STEP > 1.0 { -STEP } else { STEP };
+            set(&mut q, j, get(&p, j) + h);
+            let rq = residual(&q, &mut buf);
+            for (i, row) in jac.iter_mut().enumerate() {
+                row[j] = (rq[i] - r[i]) / h;
+            }
+        }
+        // Normal equations (5x5), solved by Gaussian elimination with damping.
+        let mut a = [[0.0f64; NP]; NP];
+        let mut g = [0.0f64; NP];
+        for (row, ri) in jac.iter().zip(&r) {
+            for i in 0..NP {
+                g[i] += row[i] * ri;
+                for k in 0..NP {
+                    a[i][k] += row[i] * row[k];
+                }
+            }
+        }
+        let trace = (0..NP).map(|i| a[i][i]).sum::<f64>().max(1e-12);
+        for (i, row) in a.iter_mut().enumerate() {
+            row[i] += DAMPING * trace;
+        }
+        let Some(delta) = solve_small(a, g.map(|x| -x)) else {
+            break;
+        };
+        let mut q = p.clone();
+        for (j, d) in delta.iter().enumerate() {
+            set(&mut q, j, get(&p, j) + d.clamp(-0.3, 0.3));
+        }
+        let rq = residual(&q, &mut buf);
+        if cost(&rq) < cost(&r) {
+            p = q;
+            r = rq;
+        } else {
+            break;
+        }
+    }
+    p
+}
+
+/// Solves a small dense system by Gaussian elimination with partial pivoting.
+fn solve_small<const N: usize>(mut a: [[f64; N]; N], mut b: [f64; N]) -> Option<[f64; N]> {
+    for c in 0..N {
+        let piv = (c..N).max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))?;
+        if a[piv][c].abs() < 1e-15 {
+            return None;
+        }
+        a.swap(c, piv);
+        b.swap(c, piv);
+        for r in c + 1..N {
+            let f = a[r][c] / a[c][c];
+            for k in c..N {
+                a[r][k] -= f * a[c][k];
+            }
+            b[r] -= f * b[c];
+        }
+    }
+    let mut x = [0.0; N];
+    for r in (0..N).rev() {
+        let s: f64 = (r + 1..N).map(|k| a[r][k] * x[k]).sum();
+        x[r] = (b[r] - s) / a[r][r];
+    }
+    Some(x)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn small_solver() {
+        let a = [[4.0, 1.0, 0.0], [1.0, 3.0, 1.0], [0.0, 1.0, 2.0]];
+        let x = [1.0, -2.0, 3.0];
+        let b = [
+            a[0][0] * x[0] + a[0][1] * x[1],
+            a[1][0] * x[0] + a[1][1] * x[1] + a[1][2] * x[2],
+            a[2][1] * x[1] + a[2][2] * x[2],
+        ];
+        let s = solve_small(a, b).unwrap();
+        for i in 0..3 {
+            assert!((s[i] - x[i]).abs() < 1e-12);
+        }
+    }
+}

@@ -1,0 +1,489 @@
+//! The paper's zone rules on one view's plane contour (method.md section 1, steps 2-5
+//! and 7). See `zones` for the plane coordinates.
+
+use super::zones::{self, Crossing};
+use super::{ContourPart, ContourRange, Status};
+use glam::DVec2;
+
+/// Lines tried when looking for the crotch gap: from `y_c - CROTCH_SCAN_FROM_H * h` up to
+/// `y_c - CROTCH_SCAN_TO_H * h`.
+const CROTCH_SCAN_FROM_H: f64 = 1.0;
+const CROTCH_SCAN_TO_H: f64 = 0.0;
+/// Lines tried for the armpit gaps, from high to low (in h above y_c).
+const ARMPIT_SCAN_FROM_H: f64 = 1.8;
+const ARMPIT_SCAN_TO_H: f64 = 0.3;
+const SCAN_STEP_H: f64 = 0.1;
+/// Zones (in h, relative to the figure's centre). The paper's zones, slightly widened so
+/// that a subject a little off the ideal proportions still fits.
+const CROTCH_ZONE_X_H: f64 = 0.3;
+const CROTCH_ZONE_Y_H: f64 = 1.0;
+const ARMPIT_ZONE_X_H: (f64, f64) = (0.1, 1.2);
+const ARMPIT_ZONE_Y_H: (f64, f64) = (0.3, 2.5);
+/// The acromion target g = (+-0.8 h, 2.5 h) (step 4).
+const ACROMION_G_H: (f64, f64) = (0.8, 2.5);
+/// Acromion candidates are above y_c + this (in h).
+const ACROMION_MIN_Y_H: f64 = 1.5;
+/// Heights above the crotch of the limb joints (second table), in h.
+pub const KNEE_H: f64 = -1.5;
+pub const ANKLE_H: f64 = -3.0;
+pub const SHOULDER_H: f64 = 2.4;
+pub const ELBOW_H: f64 = 1.4;
+pub const WRIST_H: f64 = 0.6;
+pub const HAND_H: f64 = 0.5;
+/// Height of the upper arm's middle (for the shoulder's axis), in h above the crotch.
+const UPPER_ARM_H: f64 = 1.9;
+/// Offset of the extra cuts that give a limb's axis direction, in h.
+const AXIS_CUT_OFFSET_H: f64 = 0.25;
+
+/// Landmarks of the front contour, as indices into the plane contour.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct FrontFeatures {
+    pub head_top: Option<usize>,
+    /// Height of the head top on the plane, metres.
+    pub stature: f64,
+    /// Figure centre: x = area centroid, y = stature / 2.
+    pub center: DVec2,
+    /// Head length, stature / 7.
+    pub h: f64,
+    pub crotch: Option<usize>,
+    pub armpit_left: Option<usize>,
+    pub armpit_right: Option<usize>,
+    pub acromion_left: Option<usize>,
+    pub acromion_right: Option<usize>,
+}
+
+/// Features of the side contour.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SideFeatures {
+    pub head_top: Option<usize>,
+    pub stature: f64,
+}
+
+/// Steps 2-4 on the front plane contour (CCW, (X, Y) metres).
+pub fn analyse_front(plane: &[DVec2]) -> FrontFeatures {
+    let mut f = FrontFeatures::default();
+    let n = plane.len();
+    if n < 8 {
+        return f;
+    }
+    let top = (0..n)
+        .max_by(|&a, &b| plane[a].y.total_cmp(&plane[b].y))
+        .unwrap_or(0);
+    f.head_top = Some(top);
+    f.stature = plane[top].y;
+    f.h = f.stature / 7.0;
+    let cx = zones::centroid(plane).map_or(plane[top].x, |c| c.x);
+    f.center = DVec2::new(cx, f.stature / 2.0);
+    let (c, h) = (f.center, f.h);
+    if h <= 0.0 {
+        return f;
+    }
+    let mut cr: Vec<Crossing> = Vec::new();
+
+    // Step 2: the crotch, apex of the gap between the legs.
+    let steps = ((CROTCH_SCAN_FROM_H - CROTCH_SCAN_TO_H) / SCAN_STEP_H).round() as usize;
+    for k in 0..=steps {
+        let v = c.y - CROTCH_SCAN_FROM_H * h + k as f64 * SCAN_STEP_H * h;
+        zones::crossings(plane, v, &mut cr);
+        // Gaps are (cr[2j+1], cr[2j+2]); take the one nearest the centre line.
+        let gap = (0..cr.len().saturating_sub(2) / 2)
+            .map(|j| (cr[2 * j + 1], cr[2 * j + 2]))
+            .min_by(|a, b| gap_dist(a, c.x).total_cmp(&gap_dist(b, c.x)));
+        let Some((a, b)) = gap else { continue };
+        if gap_dist(&(a, b), c.x) > CROTCH_ZONE_X_H * h {
+            continue;
+        }
+        if let Some(apex) = zones::gap_apex(plane, a.edge, b.edge, v) {
+            let p = plane[apex];
+            if (p.x - c.x).abs() <= CROTCH_ZONE_X_H * h && (p.y - c.y).abs() <= CROTCH_ZONE_Y_H * h
+            {
+                f.crotch = Some(apex);
+            }
+        }
+        break;
+    }
+
+    // Step 3: the armpits, apexes of the gaps between the torso and each arm.
+    let steps = ((ARMPIT_SCAN_FROM_H - ARMPIT_SCAN_TO_H) / SCAN_STEP_H).round() as usize;
+    for side in [1.0f64, -1.0] {
+        for k in 0..=steps {
+            let v = c.y + ARMPIT_SCAN_FROM_H * h - k as f64 * SCAN_STEP_H * h;
+            zones::crossings(plane, v, &mut cr);
+            // The inside interval holding the centre line is the torso.
+            let Some(j) = (0..cr.len() / 2).find(|&j| cr[2 * j].u <= c.x && c.x <= cr[2 * j + 1].u)
+            else {
+                continue;
+            };
+            let gap = if side > 0.0 {
+                (2 * j + 2 < cr.len()).then(|| (cr[2 * j + 1], cr[2 * j + 2]))
+            } else {
+                (j >= 1).then(|| (cr[2 * j - 1], cr[2 * j]))
+            };
+            let Some((a, b)) = gap else { continue };
+            if let Some(apex) = zones::gap_apex(plane, a.edge, b.edge, v) {
+                let p = plane[apex];
+                let dx = side * (p.x - c.x);
+                let dy = p.y - c.y;
+                if dx >= ARMPIT_ZONE_X_H.0 * h
+                    && dx <= ARMPIT_ZONE_X_H.1 * h
+                    && dy >= ARMPIT_ZONE_Y_H.0 * h
+                    && dy <= ARMPIT_ZONE_Y_H.1 * h
+                {
+                    if side > 0.0 {
+                        f.armpit_left = Some(apex);
+                    } else {
+                        f.armpit_right = Some(apex);
+                    }
+                }
+            }
+            break;
+        }
+    }
+
+    // Step 4: the acromions, the contour points closest to g = (+-0.8h, 2.5h).
+    for side in [1.0f64, -1.0] {
+        let g = DVec2::new(c.x + side * ACROMION_G_H.0 * h, c.y + ACROMION_G_H.1 * h);
+        let best = (0..n)
+            .filter(|&i| {
+                plane[i].y >= c.y + ACROMION_MIN_Y_H * h && side * (plane[i].x - c.x) > 0.0
+            })
+            .min_by(|&a, &b| {
+                plane[a]
+                    .distance_squared(g)
+                    .total_cmp(&plane[b].distance_squared(g))
+            });
+        if side > 0.0 {
+            f.acromion_left = best;
+        } else {
+            f.acromion_right = best;
+        }
+    }
+    f
+}
+
+fn gap_dist(g: &(Crossing, Crossing), x: f64) -> f64 {
+    if x < g.0.u {
+        g.0.u - x
+    } else if x > g.1.u {
+        x - g.1.u
+    } else {
+        0.0
+    }
+}
+
+/// Step 4 of the side: the head top of the side contour.
+pub fn analyse_side(plane: &[DVec2]) -> SideFeatures {
+    let n = plane.len();
+    if n < 3 {
+        return SideFeatures::default();
+    }
+    let top = (0..n)
+        .max_by(|&a, &b| plane[a].y.total_cmp(&plane[b].y))
+        .unwrap_or(0);
+    SideFeatures {
+        head_top: Some(top),
+        stature: plane[top].y,
+    }
+}
+
+fn range(from: usize, to: usize, n: usize) -> ContourRange {
+    ContourRange {
+        start: from,
+        len: (to + n - from) % n,
+    }
+}
+
+fn lowest(plane: &[DVec2], r: ContourRange) -> usize {
+    r.indices(plane.len())
+        .min_by(|&a, &b| plane[a].y.total_cmp(&plane[b].y))
+        .unwrap_or(r.start)
+}
+
+/// Indices of the front landmarks needed to split the contour into parts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FrontSplit {
+    pub acromion_left: usize,
+    pub head_top: usize,
+    pub acromion_right: usize,
+    pub armpit_right: usize,
+    pub crotch: usize,
+    pub armpit_left: usize,
+}
+
+impl FrontSplit {
+    pub fn from(f: &FrontFeatures) -> Option<Self> {
+        Some(FrontSplit {
+            acromion_left: f.acromion_left?,
+            head_top: f.head_top?,
+            acromion_right: f.acromion_right?,
+            armpit_right: f.armpit_right?,
+            crotch: f.crotch?,
+            armpit_left: f.armpit_left?,
+        })
+    }
+    /// Checks the counter-clockwise order aL, head top, aR, pR, crotch, pL.
+    fn ordered(&self, n: usize) -> bool {
+        let seq = [
+            self.acromion_left,
+            self.head_top,
+            self.acromion_right,
+            self.armpit_right,
+            self.crotch,
+            self.armpit_left,
+        ];
+        let rel: Vec<usize> = seq.iter().map(|&i| (i + n - seq[0]) % n).collect();
+        rel.windows(2).all(|w| w[0] < w[1])
+    }
+    pub fn right_arm(&self, n: usize) -> ContourRange {
+        range(self.acromion_right, self.armpit_right, n)
+    }
+    pub fn left_arm(&self, n: usize) -> ContourRange {
+        range(self.armpit_left, self.acromion_left, n)
+    }
+}
+
+/// Step 5: front contour parts with left/right status. Counter-clockwise from the left
+/// acromion: head (torso), right arm, right torso side, right leg, left leg, left torso
+/// side, left arm. Limbs split at their lowest point into the two halves.
+pub fn front_parts(plane: &[DVec2], f: &FrontFeatures, out: &mut Vec<ContourPart>) {
+    out.clear();
+    let n = plane.len();
+    let Some(s) = FrontSplit::from(f) else { return };
+    if !s.ordered(n) {
+        return;
+    }
+    let crotch_y = plane[s.crotch].y;
+    // Hips: where the path from an armpit to the crotch first drops below the crotch.
+    let path_r = range(s.armpit_right, s.crotch, n);
+    let hip_r = path_r
+        .indices(n)
+        .find(|&i| plane[i].y < crotch_y)
+        .unwrap_or(s.crotch);
+    let path_l = range(s.crotch, s.armpit_left, n);
+    let hip_l = path_l
+        .indices(n)
+        .filter(|&i| plane[i].y < crotch_y)
+        .last()
+        .map_or(s.armpit_left, |i| (i + 1) % n);
+    let hand_r = lowest(plane, s.right_arm(n));
+    let hand_l = lowest(plane, s.left_arm(n));
+    let sole_r = lowest(plane, range(hip_r, s.crotch, n));
+    let sole_l = lowest(plane, range(s.crotch, hip_l, n));
+    let mut push = |name: &'static str, status: Status, a: usize, b: usize| {
+        let r = range(a, b, n);
+        if r.len > 0 {
+            out.push(ContourPart {
+                name: name.to_string(),
+                status,
+                range: r,
+            });
+        }
+    };
+    push("torso", Status::Left, s.acromion_left, s.head_top);
+    push("torso", Status::Right, s.head_top, s.acromion_right);
+    push("right_arm", Status::Right, s.acromion_right, hand_r);
+    push("right_arm", Status::Left, hand_r, s.armpit_right);
+    push("torso", Status::Right, s.armpit_right, hip_r);
+    push("right_leg", Status::Right, hip_r, sole_r);
+    push("right_leg", Status::Left, sole_r, s.crotch);
+    push("left_leg", Status::Right, s.crotch, sole_l);
+    push("left_leg", Status::Left, sole_l, hip_l);
+    push("torso", Status::Left, hip_l, s.armpit_left);
+    push("left_arm", Status::Right, s.armpit_left, hand_l);
+    push("left_arm", Status::Left, hand_l, s.acromion_left);
+}
+
+/// Midpoint of the outermost crossings of an open chain (the points of `r`) with the line
+/// `origin + s dir`, keeping the crossings nearest `origin` on each side.
+fn chain_cut(plane: &[DVec2], r: ContourRange, origin: DVec2, dir: DVec2) -> Option<DVec2> {
+    let n = plane.len();
+    let normal = dir.perp();
+    let (mut neg, mut pos): (Option<f64>, Option<f64>) = (None, None);
+    for k in 0..r.len.saturating_sub(1) {
+        let i = (r.start + k) % n;
+        let (a, b) = (plane[i], plane[(i + 1) % n]);
+        let (da, db) = ((a - origin).dot(normal), (b - origin).dot(normal));
+        if (da <= 0.0) == (db <= 0.0) {
+            continue;
+        }
+        let p = a + (b - a) * (da / (da - db));
+        let s = (p - origin).dot(dir);
+        if s < 0.0 {
+            neg = Some(neg.map_or(s, |q: f64| q.max(s)));
+        } else {
+            pos = Some(pos.map_or(s, |q: f64| q.min(s)));
+        }
+    }
+    Some(origin + dir * (0.5 * (neg? + pos?)))
+}
+
+/// Centre of the horizontal cut through a limb chain at height v: the midpoint of the
+/// chain's extreme crossings.
+fn horizontal_cut(plane: &[DVec2], r: ContourRange, v: f64) -> Option<DVec2> {
+    let n = plane.len();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for k in 0..r.len.saturating_sub(1) {
+        let i = (r.start + k) % n;
+        let (a, b) = (plane[i], plane[(i + 1) % n]);
+        if (a.y <= v) != (b.y <= v) {
+            let u = a.x + (v - a.y) / (b.y - a.y) * (b.x - a.x);
+            lo = lo.min(u);
+            hi = hi.max(u);
+        }
+    }
+    (hi > lo).then(|| DVec2::new(0.5 * (lo + hi), v))
+}
+
+/// A limb joint at height `v` (step 7, second table) with the limb-axis correction:
+/// the horizontal cut's centre, then a cut perpendicular to the local limb axis (from the
+/// centres of cuts `offset` above and below) through it, re-centred.
+pub fn limb_joint(plane: &[DVec2], r: ContourRange, v: f64, offset: f64) -> Option<DVec2> {
+    let m0 = horizontal_cut(plane, r, v)?;
+    let (Some(up), Some(dn)) = (
+        horizontal_cut(plane, r, v + offset),
+        horizontal_cut(plane, r, v - offset),
+    ) else {
+        return Some(m0);
+    };
+    let axis = (up - dn).normalize_or_zero();
+    if axis == DVec2::ZERO {
+        return Some(m0);
+    }
+    let mut m = m0;
+    for _ in 0..2 {
+        match chain_cut(plane, r, m, axis.perp()) {
+            Some(c) => m = c,
+            None => break,
+        }
+    }
+    Some(m)
+}
+
+/// Limb joints of the front view (second table), in plane coordinates, for the limbs
+/// found. `crotch_y` and `h` are the station crotch height and head length.
+pub fn limb_joints(
+    plane: &[DVec2],
+    f: &FrontFeatures,
+    crotch_y: f64,
+    h: f64,
+) -> Vec<(super::LandmarkName, DVec2)> {
+    use super::LandmarkName::*;
+    let mut out = Vec::new();
+    let n = plane.len();
+    let Some(s) = FrontSplit::from(f) else {
+        return out;
+    };
+    if !s.ordered(n) {
+        return out;
+    }
+    let off = AXIS_CUT_OFFSET_H * h;
+    // Legs: from the crotch around each foot to the hip on the same side.
+    let crotch = s.crotch;
+    let right_leg = range(s.armpit_right, crotch, n);
+    let left_leg = range(crotch, s.armpit_left, n);
+    for (leg, knee, ankle) in [
+        (right_leg, KneeRight, AnkleRight),
+        (left_leg, KneeLeft, AnkleLeft),
+    ] {
+        // Only the part below the crotch (the torso side is above it).
+        if let Some(p) = limb_joint(plane, leg, crotch_y + KNEE_H * h, off) {
+            out.push((knee, p));
+        }
+        if let Some(p) = limb_joint(plane, leg, crotch_y + ANKLE_H * h, off) {
+            out.push((ankle, p));
+        }
+    }
+    for (arm, sh, el, wr, ha) in [
+        (
+            s.right_arm(n),
+            ShoulderRight,
+            ElbowRight,
+            WristRight,
+            HandRight,
+        ),
+        (s.left_arm(n), ShoulderLeft, ElbowLeft, WristLeft, HandLeft),
+    ] {
+        let elbow = limb_joint(plane, arm, crotch_y + ELBOW_H * h, off);
+        if let Some(p) = elbow {
+            out.push((el, p));
+        }
+        if let Some(p) = limb_joint(plane, arm, crotch_y + WRIST_H * h, off) {
+            out.push((wr, p));
+        }
+        if let Some(p) = limb_joint(plane, arm, crotch_y + HAND_H * h, off) {
+            out.push((ha, p));
+        }
+        // The shoulder cut meets the arm chain only on its outer edge: extend the upper
+        // arm's axis (upper-arm middle -> elbow) to the shoulder height instead.
+        let upper = limb_joint(plane, arm, crotch_y + UPPER_ARM_H * h, off);
+        if let (Some(e), Some(u)) = (elbow, upper) {
+            let d = u - e;
+            if d.y.abs() > 1e-6 {
+                let v = crotch_y + SHOULDER_H * h;
+                out.push((sh, e + d * ((v - e.y) / d.y)));
+            }
+        }
+    }
+    out
+}
+
+/// Step 6: side parts. `axis_z(v)` is the side axis at height v; points at or above
+/// `crotch_y` are "side_torso", below "side_leg"; front when u >= axis.
+pub fn side_parts(
+    plane: &[DVec2],
+    crotch_y: f64,
+    axis_z: &dyn Fn(f64) -> Option<f64>,
+    out: &mut Vec<ContourPart>,
+) {
+    out.clear();
+    let n = plane.len();
+    if n == 0 {
+        return;
+    }
+    let label = |i: usize| -> (&'static str, Status) {
+        let p = plane[i];
+        let name = if p.y >= crotch_y {
+            "side_torso"
+        } else {
+            "side_leg"
+        };
+        let status = match axis_z(p.y) {
+            Some(z) if p.x < z => Status::Back,
+            _ => Status::Front,
+        };
+        (name, status)
+    };
+    // Start at a label change so no run wraps around the end.
+    let start = (0..n)
+        .find(|&i| label(i) != label((i + n - 1) % n))
+        .unwrap_or(0);
+    let mut run_start = start;
+    let mut cur = label(start);
+    for k in 1..=n {
+        let i = (start + k) % n;
+        let l = label(i);
+        if l != cur || k == n {
+            out.push(ContourPart {
+                name: cur.0.to_string(),
+                status: cur.1,
+                range: range(run_start, i, n).max_len(n),
+            });
+            run_start = i;
+            cur = l;
+        }
+    }
+}
+
+impl ContourRange {
+    /// A range of length 0 from `range(a, a)` means the whole contour.
+    fn max_len(self, n: usize) -> Self {
+        if self.len == 0 {
+            ContourRange {
+                start: self.start,
+                len: n,
+            }
+        } else {
+            self
+        }
+    }
+}

@@ -1,0 +1,735 @@
+//! Landmarks, contour parts, skeleton joints and frame verdicts from the two calibrated
+//! views (issue 4, steps 4-5; method.md section 1).
+//!
+//! Per view: segmentation (`segment`), the largest component's outer contour (`contour`)
+//! refined to sub-pixel and resampled evenly, then undistorted point by point and mapped
+//! onto a vertical plane through the mark (front: z = 0, side: x = 0) where the paper's
+//! zones are applied in metres (`zones`). Landmarks found in the front view are lifted to
+//! the station frame with perspective rays (`lift`): the front ray of a landmark is cut
+//! by the plane z = z_side(height), where z_side is the side contour's axis at that
+//! height (computed on the plane x = the landmark's x), iterated so both views agree.
+//!
+//! # Conventions
+//! - Station frame (`shared/spec/formats.md`): metres, +Y up, +Z toward the front camera,
+//!   +X the subject's left, origin on the floor at the mark; soles on y = 0, so the
+//!   stature is the height of the head top.
+//! - Pixels are each frame's own distorted pixels (origin at the centre of the top-left
+//!   pixel). The front camera faces the subject: the subject's left (+X) is on the image's
+//!   right. The side camera on +X looks toward -X: the subject's front (+Z) is on the
+//!   image's left (checked by `tests::image_orientation_of_the_nominal_station`).
+//! - `h`, the paper's head length, is stature / 7.
+//! - "Left"/"right" are the subject's.
+
+pub mod cli;
+pub mod lift;
+pub mod phantom;
+pub mod zones;
+
+mod analysis;
+
+pub use analysis::{analyse_front, analyse_side, FrontFeatures, SideFeatures};
+
+use crate::camera::{StationCalibration, View};
+use crate::contour::{self, Contour, SilhouetteTarget, SubpixelOptions};
+use crate::imgproc::PointUndistorter;
+use crate::segment::{BackgroundModel, Mask, SegmentError, SegmentOptions, SegmentStats};
+use glam::{DVec2, DVec3};
+use image::RgbImage;
+use std::time::Instant;
+
+/// Names of landmarks and skeleton joints.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum LandmarkName {
+    HeadTop,
+    Crotch,
+    ArmpitLeft,
+    ArmpitRight,
+    AcromionLeft,
+    AcromionRight,
+    // Skeleton joints, first table (on the body axis).
+    Hip,
+    Abdomen,
+    Waist,
+    Chest,
+    Neck,
+    Head,
+    ThighRootLeft,
+    ThighRootRight,
+    // Limb joints, second table.
+    KneeLeft,
+    KneeRight,
+    AnkleLeft,
+    AnkleRight,
+    ShoulderLeft,
+    ShoulderRight,
+    ElbowLeft,
+    ElbowRight,
+    WristLeft,
+    WristRight,
+    HandLeft,
+    HandRight,
+}
+
+impl LandmarkName {
+    /// Stable snake_case name (used in JSON).
+    pub fn as_str(self) -> &'static str {
+        use LandmarkName::*;
+        match self {
+            HeadTop => "head_top",
+            Crotch => "crotch",
+            ArmpitLeft => "armpit_left",
+            ArmpitRight => "armpit_right",
+            AcromionLeft => "acromion_left",
+            AcromionRight => "acromion_right",
+            Hip => "hip",
+            Abdomen => "abdomen",
+            Waist => "waist",
+            Chest => "chest",
+            Neck => "neck",
+            Head => "head",
+            ThighRootLeft => "thigh_root_left",
+            ThighRootRight => "thigh_root_right",
+            KneeLeft => "knee_left",
+            KneeRight => "knee_right",
+            AnkleLeft => "ankle_left",
+            AnkleRight => "ankle_right",
+            ShoulderLeft => "shoulder_left",
+            ShoulderRight => "shoulder_right",
+            ElbowLeft => "elbow_left",
+            ElbowRight => "elbow_right",
+            WristLeft => "wrist_left",
+            WristRight => "wrist_right",
+            HandLeft => "hand_left",
+            HandRight => "hand_right",
+        }
+    }
+    /// True for skeleton joints (as opposed to surface landmarks).
+    pub fn is_joint(self) -> bool {
+        !matches!(
+            self,
+            LandmarkName::HeadTop
+                | LandmarkName::Crotch
+                | LandmarkName::ArmpitLeft
+                | LandmarkName::ArmpitRight
+                | LandmarkName::AcromionLeft
+                | LandmarkName::AcromionRight
+        )
+    }
+}
+
+/// Side of a contour part, as the fitter matches template slices to contour parts.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Status {
+    Left,
+    Right,
+    Front,
+    Back,
+}
+
+/// A run of contour points `start, start+1, ..., start+len-1` (mod n).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct ContourRange {
+    pub start: usize,
+    pub len: usize,
+}
+
+impl ContourRange {
+    /// The contour indices of the range.
+    pub fn indices(&self, n: usize) -> impl Iterator<Item = usize> + '_ {
+        let s = self.start;
+        (0..self.len).map(move |k| (s + k) % n.max(1))
+    }
+}
+
+/// A part of a view's contour (method.md section 1, steps 5-6).
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct ContourPart {
+    /// "torso", "left_arm", "right_arm", "left_leg", "right_leg" (front);
+    /// "side_torso", "side_leg" (side).
+    pub name: String,
+    pub status: Status,
+    pub range: ContourRange,
+}
+
+/// Image edge of a frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FrameEdge {
+    Top,
+    Bottom,
+    Left,
+    Right,
+}
+
+/// What is wrong with a frame pair, for the fit and the screen. Several can hold at once.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+#[serde(tag = "verdict", rename_all = "snake_case")]
+pub enum Verdict {
+    NoPerson,
+    MultiplePeople,
+    CutOff { view: View, edge: FrameEdge },
+    ArmsTouchingTorso { left: bool, right: bool },
+    LegsTogether,
+    UnderExposed { view: View },
+    OverExposed { view: View },
+    OffMark { dx_m: f64, dz_m: f64 },
+}
+
+impl Verdict {
+    /// A sentence for the screen.
+    pub fn message(&self) -> String {
+        match *self {
+            Verdict::NoPerson => "Nobody is on the mark.".into(),
+            Verdict::MultiplePeople => {
+                "More than one person is in view: only the shopper should stand in the booth."
+                    .into()
+            }
+            Verdict::CutOff { view, edge } => {
+                let e = match edge {
+                    FrameEdge::Top => "top",
+                    FrameEdge::Bottom => "bottom",
+                    FrameEdge::Left => "left",
+                    FrameEdge::Right => "right",
+                };
+                format!(
+                    "The body is cut off at the {e} of the {} camera's picture.",
+                    view.name()
+                )
+            }
+            Verdict::ArmsTouchingTorso { left, right } => {
+                let which = match (left, right) {
+                    (true, true) => "both arms",
+                    (true, false) => "the left arm",
+                    _ => "the right arm",
+                };
+                format!("Hold {which} a little away from the body.")
+            }
+            Verdict::LegsTogether => "Stand with the feet a little apart.".into(),
+            Verdict::UnderExposed { view } => {
+                format!("The {} camera's picture is too dark.", view.name())
+            }
+            Verdict::OverExposed { view } => {
+                format!("The {} camera's picture is too bright.", view.name())
+            }
+            Verdict::OffMark { dx_m, dz_m } => {
+                format!(
+                    "Step onto the mark ({:+.0} cm sideways, {:+.0} cm forward off).",
+                    dx_m * 100.0,
+                    dz_m * 100.0
+                )
+            }
+        }
+    }
+}
+
+/// Thresholds of the verdicts.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct VerdictOptions {
+    /// Mean luma below which (or crushed-black fraction above which) a frame is dark.
+    pub under_mean_luma: f32,
+    pub over_mean_luma: f32,
+    pub max_clipped_fraction: f32,
+    /// A second component at least this fraction of the largest is another person.
+    pub second_person_ratio: f32,
+    /// Distance from the mark beyond which the subject is off the mark, metres.
+    pub off_mark_m: f64,
+}
+
+impl Default for VerdictOptions {
+    fn default() -> Self {
+        VerdictOptions {
+            under_mean_luma: 40.0,
+            over_mean_luma: 225.0,
+            max_clipped_fraction: 0.3,
+            second_person_ratio: 0.15,
+            off_mark_m: 0.10,
+        }
+    }
+}
+
+/// Options of the silhouette stage.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SilhouetteOptions {
+    pub segment: SegmentOptions,
+    pub verdicts: VerdictOptions,
+    pub subpixel: SubpixelOptions,
+    /// Spacing of the output contour points, pixels.
+    pub contour_spacing_px: f64,
+    /// Lifting iterations between the two views.
+    pub lift_iterations: usize,
+}
+
+impl Default for SilhouetteOptions {
+    fn default() -> Self {
+        SilhouetteOptions {
+            segment: SegmentOptions::default(),
+            verdicts: VerdictOptions::default(),
+            subpixel: SubpixelOptions::default(),
+            contour_spacing_px: 2.0,
+            lift_iterations: 3,
+        }
+    }
+}
+
+/// One view's analysis.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ViewAnalysis {
+    pub view: View,
+    /// The person's outer contour: sub-pixel, evenly resampled, distorted pixels. Ordered
+    /// counter-clockwise as seen in the station plane of the view (front: X right, Y up;
+    /// side: Z right, Y up).
+    pub contour: Contour,
+    /// The same points on the view's plane through the mark (front z = 0: (X, Y); side
+    /// x = 0: (Z, Y)), metres.
+    pub plane: Vec<DVec2>,
+    pub parts: Vec<ContourPart>,
+    /// Landmarks and joints seen in this view, distorted pixels.
+    pub landmarks_px: Vec<(LandmarkName, DVec2)>,
+    pub verdicts: Vec<Verdict>,
+    pub stats: SegmentStats,
+}
+
+impl ViewAnalysis {
+    pub fn empty(view: View) -> Self {
+        ViewAnalysis {
+            view,
+            contour: Contour::default(),
+            plane: Vec::new(),
+            parts: Vec::new(),
+            landmarks_px: Vec::new(),
+            verdicts: Vec::new(),
+            stats: SegmentStats::default(),
+        }
+    }
+    /// The pixel of a landmark in this view.
+    pub fn landmark(&self, name: LandmarkName) -> Option<DVec2> {
+        self.landmarks_px
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map(|&(_, p)| p)
+    }
+}
+
+/// A landmark or joint in the station frame with its pixels in both views.
+#[derive(Debug, Clone, PartialEq)]
+pub struct NamedPoint {
+    pub name: String,
+    pub landmark: LandmarkName,
+    pub station: DVec3,
+    pub front_px: Option<DVec2>,
+    pub side_px: Option<DVec2>,
+}
+
+/// All landmarks and joints in the station frame.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct StationLandmarks {
+    pub points: Vec<NamedPoint>,
+    /// Height of the head top (soles on y = 0), metres; 0 when no person.
+    pub stature_m: f64,
+    pub verdicts: Vec<Verdict>,
+}
+
+impl StationLandmarks {
+    pub fn get(&self, name: LandmarkName) -> Option<&NamedPoint> {
+        self.points.iter().find(|p| p.landmark == name)
+    }
+}
+
+/// Milliseconds per stage of one frame pair.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct SilhouetteTimings {
+    pub segment_ms: f64,
+    pub contour_ms: f64,
+    pub landmarks_ms: f64,
+    pub total_ms: f64,
+}
+
+/// The two views' masks.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ViewMasks {
+    pub front: Mask,
+    pub side: Mask,
+}
+
+/// Everything the silhouette stage found in a frame pair.
+#[derive(Debug, Clone, PartialEq)]
+pub struct SilhouetteResult {
+    pub front: ViewAnalysis,
+    pub side: ViewAnalysis,
+    pub landmarks: StationLandmarks,
+    pub masks: ViewMasks,
+    pub timings: SilhouetteTimings,
+}
+
+impl SilhouetteResult {
+    pub fn empty() -> Self {
+        SilhouetteResult {
+            front: ViewAnalysis::empty(View::Front),
+            side: ViewAnalysis::empty(View::Side),
+            landmarks: StationLandmarks::default(),
+            masks: ViewMasks::default(),
+            timings: SilhouetteTimings::default(),
+        }
+    }
+}
+
+/// Errors of the silhouette stage.
+#[derive(Debug, thiserror::Error)]
+pub enum LandmarkError {
+    #[error("{view} camera: {source}")]
+    Segment {
+        view: &'static str,
+        source: SegmentError,
+    },
+    #[error(transparent)]
+    Calibration(#[from] crate::camera::CameraError),
+}
+
+/// Per-view state: background model, undistorter and scratch.
+#[derive(Debug, Clone)]
+struct ViewState {
+    model: BackgroundModel,
+    undistort: PointUndistorter,
+    chain: Vec<(i64, i64)>,
+    chain_f: Vec<DVec2>,
+    resampled: Vec<DVec2>,
+    scratch: Vec<DVec2>,
+    normalized: Vec<DVec2>,
+    fill_scratch: Vec<(u32, f32)>,
+    target: SilhouetteTarget,
+}
+
+/// Owns the background models and scratch memory of both views; runs the silhouette
+/// stage on frame pairs.
+#[derive(Debug, Clone)]
+pub struct SilhouetteExecutor {
+    pub calib: StationCalibration,
+    pub opts: SilhouetteOptions,
+    front: ViewState,
+    side: ViewState,
+}
+
+/// Fraction of the person box's height a traced contour must span to be the person (not a
+/// speck next to it).
+const MIN_TRACE_SPAN: f64 = 0.5;
+/// Spacing of the first resampling of the pixel chain, before sub-pixel refinement.
+const CHAIN_SPACING_PX: f64 = 2.0;
+
+impl SilhouetteExecutor {
+    pub fn new(calib: &StationCalibration, opts: SilhouetteOptions) -> Self {
+        let state = |v: View| {
+            let i = calib.camera(v).intrinsics;
+            ViewState {
+                model: BackgroundModel::new(i.width, i.height, opts.segment),
+                undistort: PointUndistorter::new(i),
+                chain: Vec::new(),
+                chain_f: Vec::new(),
+                resampled: Vec::new(),
+                scratch: Vec::new(),
+                normalized: Vec::new(),
+                fill_scratch: Vec::new(),
+                target: SilhouetteTarget::default(),
+            }
+        };
+        SilhouetteExecutor {
+            calib: calib.clone(),
+            opts,
+            front: state(View::Front),
+            side: state(View::Side),
+        }
+    }
+
+    /// Learns one empty-scene frame pair.
+    ///
+    /// # Errors
+    /// A frame that does not match its camera's calibration.
+    pub fn learn_background(
+        &mut self,
+        front: &RgbImage,
+        side: &RgbImage,
+    ) -> Result<(), LandmarkError> {
+        self.check(front, side)?;
+        self.front
+            .model
+            .learn(front)
+            .map_err(|e| LandmarkError::Segment {
+                view: "front",
+                source: e,
+            })?;
+        self.side
+            .model
+            .learn(side)
+            .map_err(|e| LandmarkError::Segment {
+                view: "side",
+                source: e,
+            })?;
+        Ok(())
+    }
+
+    /// True once both background models have learned an empty frame.
+    pub fn is_ready(&self) -> bool {
+        self.front.model.is_ready() && self.side.model.is_ready()
+    }
+
+    /// The fitter's view of a silhouette (contour, point-in-mask, nearest contour point)
+    /// from the last processed pair.
+    pub fn target(&self, view: View) -> &SilhouetteTarget {
+        match view {
+            View::Front => &self.front.target,
+            View::Side => &self.side.target,
+        }
+    }
+
+    /// The background model of a view.
+    pub fn model(&self, view: View) -> &BackgroundModel {
+        match view {
+            View::Front => &self.front.model,
+            View::Side => &self.side.model,
+        }
+    }
+
+    fn check(&self, front: &RgbImage, side: &RgbImage) -> Result<(), LandmarkError> {
+        self.calib
+            .check_frame_size(View::Front, front.width(), front.height())?;
+        self.calib
+            .check_frame_size(View::Side, side.width(), side.height())?;
+        Ok(())
+    }
+
+    /// Processes a frame pair.
+    ///
+    /// # Errors
+    /// Frames of the wrong size, or background models that have learned nothing yet.
+    pub fn process(
+        &mut self,
+        front: &RgbImage,
+        side: &RgbImage,
+    ) -> Result<SilhouetteResult, LandmarkError> {
+        let mut out = SilhouetteResult::empty();
+        self.process_into(front, side, &mut out)?;
+        Ok(out)
+    }
+
+    /// Processes a frame pair into `out`, reusing its buffers (the per-frame path).
+    ///
+    /// # Errors
+    /// As [`SilhouetteExecutor::process`].
+    pub fn process_into(
+        &mut self,
+        front: &RgbImage,
+        side: &RgbImage,
+        out: &mut SilhouetteResult,
+    ) -> Result<(), LandmarkError> {
+        self.check(front, side)?;
+        let t0 = Instant::now();
+        let mut timings = SilhouetteTimings::default();
+        for view in View::BOTH {
+            let (state, frame, analysis, mask) = match view {
+                View::Front => (&mut self.front, front, &mut out.front, &mut out.masks.front),
+                View::Side => (&mut self.side, side, &mut out.side, &mut out.masks.side),
+            };
+            let ts = Instant::now();
+            let stats = state
+                .model
+                .segment(frame, mask)
+                .map_err(|e| LandmarkError::Segment {
+                    view: view.name(),
+                    source: e,
+                })?;
+            timings.segment_ms += ms(ts);
+            let tc = Instant::now();
+            analysis.view = view;
+            analysis.stats = stats;
+            analysis.parts.clear();
+            analysis.landmarks_px.clear();
+            analysis.verdicts.clear();
+            view_verdicts(&stats, view, &self.opts.verdicts, &mut analysis.verdicts);
+            trace_person(
+                state,
+                frame,
+                mask,
+                &stats,
+                &self.opts,
+                &mut analysis.contour,
+            );
+            // The mask from the sub-pixel contour: its border on the edge's 50 % level.
+            if !analysis.contour.is_empty() {
+                analysis.stats.person_px =
+                    contour::fill_polygon(&analysis.contour.points, mask, &mut state.fill_scratch);
+            }
+            // Plane coordinates (front: z = 0, side: x = 0) and orientation.
+            let cam = self.calib.camera(view);
+            state.normalized.clear();
+            state.normalized.extend(
+                analysis
+                    .contour
+                    .points
+                    .iter()
+                    .map(|&p| state.undistort.normalized(p)),
+            );
+            analysis.plane.clear();
+            let axis = match view {
+                View::Front => lift::PlaneAxis::Z,
+                View::Side => lift::PlaneAxis::X,
+            };
+            analysis.plane.extend(
+                state
+                    .normalized
+                    .iter()
+                    .map(|&n| lift::to_plane(cam, n, axis, 0.0)),
+            );
+            if contour::signed_area2(&analysis.plane) < 0.0 {
+                analysis.plane.reverse();
+                analysis.contour.points.reverse();
+                state.normalized.reverse();
+            }
+            state.target.rebuild(mask, &analysis.contour);
+            timings.contour_ms += ms(tc);
+        }
+        let tl = Instant::now();
+        out.landmarks.points.clear();
+        out.landmarks.verdicts.clear();
+        out.landmarks.stature_m = 0.0;
+        if !out.front.contour.is_empty() && !out.side.contour.is_empty() {
+            let ff = analyse_front(&out.front.plane);
+            let sf = analyse_side(&out.side.plane);
+            lift::lift_all(
+                &self.calib,
+                &self.front.normalized,
+                &self.side.normalized,
+                &ff,
+                &sf,
+                &self.opts,
+                out,
+            );
+        }
+        // Station verdicts: union of both views', without repeats.
+        let mut all: Vec<Verdict> = Vec::new();
+        for v in out
+            .front
+            .verdicts
+            .iter()
+            .chain(&out.side.verdicts)
+            .chain(&out.landmarks.verdicts)
+        {
+            if !all.contains(v) {
+                all.push(*v);
+            }
+        }
+        out.landmarks.verdicts = all;
+        timings.landmarks_ms = ms(tl);
+        timings.total_ms = ms(t0);
+        out.timings = timings;
+        Ok(())
+    }
+}
+
+fn ms(t: Instant) -> f64 {
+    t.elapsed().as_secs_f64() * 1e3
+}
+
+/// Verdicts that the segmentation statistics alone decide.
+fn view_verdicts(stats: &SegmentStats, view: View, o: &VerdictOptions, out: &mut Vec<Verdict>) {
+    if stats.mean_luma < o.under_mean_luma || stats.clipped_low > o.max_clipped_fraction {
+        out.push(Verdict::UnderExposed { view });
+    }
+    if stats.mean_luma > o.over_mean_luma || stats.clipped_high > o.max_clipped_fraction {
+        out.push(Verdict::OverExposed { view });
+    }
+    if stats.person_box.is_none() {
+        out.push(Verdict::NoPerson);
+        return;
+    }
+    if stats.second_px as f64 >= o.second_person_ratio as f64 * stats.largest_px as f64
+        && stats.large_components >= 2
+    {
+        out.push(Verdict::MultiplePeople);
+    }
+    let t = stats.touches;
+    for (on, edge) in [
+        (t.top, FrameEdge::Top),
+        (t.bottom, FrameEdge::Bottom),
+        (t.left, FrameEdge::Left),
+        (t.right, FrameEdge::Right),
+    ] {
+        if on {
+            out.push(Verdict::CutOff { view, edge });
+        }
+    }
+}
+
+/// Traces the person's outer contour, refines it to sub-pixel and resamples it.
+fn trace_person(
+    state: &mut ViewState,
+    frame: &RgbImage,
+    mask: &Mask,
+    stats: &SegmentStats,
+    opts: &SilhouetteOptions,
+    out: &mut Contour,
+) {
+    out.points.clear();
+    let Some(b) = stats.person_box else {
+        return;
+    };
+    let height = (b.max_y - b.min_y) as f64;
+    // Start rows at several heights; the first pixel met from the left of the box is on
+    // an outer border. Keep the first trace that spans the person's height.
+    for frac in [0.5, 0.3, 0.7, 0.15, 0.85] {
+        let y = b.min_y + ((b.max_y - b.min_y) as f64 * frac) as u32;
+        let row = &mask.data[(y * mask.width) as usize..((y + 1) * mask.width) as usize];
+        let Some(x) = (b.min_x..b.max_x).find(|&x| row[x as usize] != 0) else {
+            continue;
+        };
+        state.chain.clear();
+        contour::follow_outer_border(mask, (x as i64, y as i64), &mut state.chain);
+        let (lo, hi) = state
+            .chain
+            .iter()
+            .fold((i64::MAX, i64::MIN), |(lo, hi), p| {
+                (lo.min(p.1), hi.max(p.1))
+            });
+        if ((hi - lo) as f64) >= MIN_TRACE_SPAN * height {
+            break;
+        }
+        state.chain.clear();
+    }
+    if state.chain.len() < 3 {
+        return;
+    }
+    state.chain_f.clear();
+    state.chain_f.extend(
+        state
+            .chain
+            .iter()
+            .map(|&(x, y)| DVec2::new(x as f64, y as f64)),
+    );
+    contour::resample_closed(&state.chain_f, CHAIN_SPACING_PX, &mut state.resampled);
+    let model = &state.model;
+    let score = |x: i64, y: i64| -> f32 { model.distance_clamped(frame, x, y) };
+    contour::refine_subpixel(
+        &mut state.resampled,
+        &score,
+        &opts.subpixel,
+        &mut state.scratch,
+    );
+    contour::resample_closed(&state.resampled, opts.contour_spacing_px, &mut out.points);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn image_orientation_of_the_nominal_station() {
+        let s = StationCalibration::nominal(720, 1280, 1400.0, 2.6, 1.0, 0.9);
+        let c = s.front.project(DVec3::new(0.0, 1.0, 0.0)).unwrap();
+        // Subject's left (+X) on the front image's right.
+        assert!(s.front.project(DVec3::new(0.2, 1.0, 0.0)).unwrap().x > c.x);
+        // Subject's front (+Z) on the side image's left.
+        let cs = s.side.project(DVec3::new(0.0, 1.0, 0.0)).unwrap();
+        assert!(s.side.project(DVec3::new(0.0, 1.0, 0.2)).unwrap().x < cs.x);
+        // Up is up in both.
+        assert!(s.side.project(DVec3::new(0.0, 1.5, 0.0)).unwrap().y < cs.y);
+    }
+}

@@ -1,0 +1,639 @@
+//! Fast repeated horizontal sections of one mesh, split into connected loops, with the
+//! convex hull of each loop: the geometric core of [`super::Measurer`].
+//!
+//! Conventions: heights `y` in metres (station frame, +Y up); a section lives in the
+//! (x, z) plane and its points are `DVec2::new(x, z)`; +X is the subject's left, +Z the
+//! front. Lengths and areas of hulls are metres and square metres.
+//!
+//! [`LevelIndex`] buckets the triangles by the height range they span (built once per
+//! mesh, O(#F)), so a section at `y` visits only the triangles of one bucket instead of
+//! the whole mesh. [`SectionScratch`] owns every buffer a section needs, so slicing the
+//! same mesh at hundreds of levels allocates nothing once the buffers have grown.
+//!
+//! This is a local, allocation-free sibling of [`crate::mesh::section::slice`] and
+//! [`crate::mesh::section::convex_hull`] (those allocate per call and chain loops in
+//! order, which girths do not need: a loop's convex hull needs only its point set).
+
+use crate::mesh::TriMesh;
+use glam::{DVec2, DVec3};
+
+/// Vertices closer than this to the cutting plane (metres) are treated as lying just
+/// above it, so no section segment degenerates (same rule as `mesh::section::slice`).
+const ON_PLANE_EPS_M: f64 = 1e-12;
+/// Upper bound on the number of height buckets of a [`LevelIndex`].
+const MAX_BUCKETS: usize = 4096;
+
+/// Triangles bucketed by height, and which triangle lies across each triangle edge.
+///
+/// Bucket `b` covers `[y0 + b h, y0 + (b+1) h)` and lists every triangle whose y-range
+/// meets it (compressed rows). The edge neighbours depend only on the triangle list, so
+/// they are kept while the topology stays the same (a fitted template every frame).
+#[derive(Debug, Clone, Default)]
+pub struct LevelIndex {
+    y0: f64,
+    bucket_h: f64,
+    n_buckets: usize,
+    offsets: Vec<u32>,
+    triangles: Vec<u32>,
+    counts: Vec<u32>,
+    ranges: Vec<(f64, f64)>,
+    /// First and last bucket of each triangle.
+    spans: Vec<(u32, u32)>,
+    /// The triangle list the neighbours were built for.
+    topology: Vec<[u32; 3]>,
+    /// `neighbours[t][e]`: the triangle across edge e (vertices e, e+1) of t, or
+    /// `NO_NEIGHBOUR` on a boundary. At a non-manifold edge the triangles sharing it
+    /// are linked in a cycle, which still puts them in one loop.
+    neighbours: Vec<[u32; 3]>,
+    /// Triangles around each vertex (compressed rows), to find edge neighbours.
+    vertex_offsets: Vec<u32>,
+    vertex_triangles: Vec<u32>,
+}
+
+/// Marks a boundary edge in [`LevelIndex`]'s neighbour table.
+const NO_NEIGHBOUR: u32 = u32::MAX;
+
+impl LevelIndex {
+    /// Rebuilds the index for `mesh` (indices must already be checked in range).
+    ///
+    /// The bucket height is the mean height span of a triangle (at least the mesh
+    /// height / [`MAX_BUCKETS`]), so a triangle sits in about two buckets and a section
+    /// visits about twice the triangles it actually cuts.
+    pub fn rebuild(&mut self, mesh: &TriMesh, y_min: f64, y_max: f64) {
+        if self.topology != mesh.triangles {
+            self.rebuild_neighbours(&mesh.triangles);
+        }
+        let height = (y_max - y_min).max(f64::MIN_POSITIVE);
+        self.ranges.clear();
+        let mut span_sum = 0.0;
+        for t in &mesh.triangles {
+            let r = tri_y_range(mesh, t);
+            span_sum += r.1 - r.0;
+            self.ranges.push(r);
+        }
+        let mean_span = span_sum / mesh.triangles.len().max(1) as f64;
+        let bucket_h = mean_span
+            .max(height / MAX_BUCKETS as f64)
+            .max(f64::MIN_POSITIVE);
+        let n_buckets = ((height / bucket_h).ceil() as usize).clamp(1, MAX_BUCKETS);
+        self.y0 = y_min;
+        self.bucket_h = bucket_h;
+        self.n_buckets = n_buckets;
+        let mut counts = std::mem::take(&mut self.counts);
+        counts.clear();
+        counts.resize(n_buckets, 0);
+        let mut spans = std::mem::take(&mut self.spans);
+        spans.clear();
+        for &(lo, hi) in &self.ranges {
+            let (b0, b1) = (self.bucket(lo), self.bucket(hi));
+            spans.push((b0 as u32, b1 as u32));
+            for c in &mut counts[b0..=b1] {
+                *c += 1;
+            }
+        }
+        self.offsets.clear();
+        self.offsets.push(0);
+        let mut acc = 0u32;
+        for &c in &counts {
+            acc += c;
+            self.offsets.push(acc);
+        }
+        self.triangles.clear();
+        self.triangles.resize(acc as usize, 0);
+        // Reuse counts as fill cursors.
+        for (c, &o) in counts.iter_mut().zip(&self.offsets) {
+            *c = o;
+        }
+        for (i, &(b0, b1)) in spans.iter().enumerate() {
+            for c in &mut counts[b0 as usize..=b1 as usize] {
+                self.triangles[*c as usize] = i as u32;
+                *c += 1;
+            }
+        }
+        self.spans = spans;
+        self.counts = counts;
+    }
+
+    /// Edge neighbours through vertex -> triangle lists (linear time, no sorting).
+    fn rebuild_neighbours(&mut self, triangles: &[[u32; 3]]) {
+        self.topology.clear();
+        self.topology.extend_from_slice(triangles);
+        self.neighbours.clear();
+        self.neighbours.resize(triangles.len(), [NO_NEIGHBOUR; 3]);
+        let n_vertices = triangles
+            .iter()
+            .flatten()
+            .map(|&v| v as usize + 1)
+            .max()
+            .unwrap_or(0);
+        let (offsets, incident) = (&mut self.vertex_offsets, &mut self.vertex_triangles);
+        offsets.clear();
+        offsets.resize(n_vertices + 1, 0);
+        for &v in triangles.iter().flatten() {
+            offsets[v as usize + 1] += 1;
+        }
+        for i in 0..n_vertices {
+            offsets[i + 1] += offsets[i];
+        }
+        incident.clear();
+        incident.resize(offsets[n_vertices] as usize, 0);
+        let mut cursor = std::mem::take(&mut self.counts);
+        cursor.clear();
+        cursor.extend_from_slice(&offsets[..n_vertices]);
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                incident[cursor[v as usize] as usize] = t as u32;
+                cursor[v as usize] += 1;
+            }
+        }
+        self.counts = cursor;
+        for (t, tri) in triangles.iter().enumerate() {
+            for e in 0..3 {
+                let (a, b) = (tri[e], tri[(e + 1) % 3]);
+                let around_a =
+                    &incident[offsets[a as usize] as usize..offsets[a as usize + 1] as usize];
+                // The triangles sharing edge a-b form a cycle in id order: the next
+                // larger id, else the smallest (the only other one on a manifold edge).
+                let (mut next, mut first) = (NO_NEIGHBOUR, NO_NEIGHBOUR);
+                for &u in around_a {
+                    if u as usize == t || !triangles[u as usize].contains(&b) {
+                        continue;
+                    }
+                    first = first.min(u);
+                    if u as usize > t {
+                        next = next.min(u);
+                    }
+                }
+                self.neighbours[t][e] = if next != NO_NEIGHBOUR { next } else { first };
+            }
+        }
+    }
+
+    fn bucket(&self, y: f64) -> usize {
+        let n = self.n_buckets.max(1);
+        let b = ((y - self.y0) / self.bucket_h).floor();
+        if b.is_nan() || b < 0.0 {
+            0
+        } else {
+            (b as usize).min(n - 1)
+        }
+    }
+
+    /// Whether the edge neighbours were built for this triangle list.
+    pub fn topology_matches(&self, triangles: &[[u32; 3]]) -> bool {
+        self.topology == triangles
+    }
+
+    /// Number of height buckets and of (bucket, triangle) entries.
+    pub fn size(&self) -> (usize, usize) {
+        (self.n_buckets, self.triangles.len())
+    }
+
+    /// Triangles that may cross height `y` (a superset of those that do).
+    pub fn candidates(&self, y: f64) -> &[u32] {
+        if self.offsets.len() != self.n_buckets + 1 || self.n_buckets == 0 {
+            return &[];
+        }
+        let b = self.bucket(y);
+        &self.triangles[self.offsets[b] as usize..self.offsets[b + 1] as usize]
+    }
+}
+
+fn tri_y_range(mesh: &TriMesh, t: &[u32; 3]) -> (f64, f64) {
+    let ys = t.map(|v| mesh.positions[v as usize].y);
+    (ys[0].min(ys[1]).min(ys[2]), ys[0].max(ys[1]).max(ys[2]))
+}
+
+/// One connected loop of a section (a closed curve on a watertight mesh).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LoopInfo {
+    /// Extent of the loop in x and z (metres).
+    pub x_min: f64,
+    pub x_max: f64,
+    pub z_min: f64,
+    pub z_max: f64,
+    /// Range of this loop's segments in [`SectionScratch`]'s grouped segment order.
+    seg_start: u32,
+    seg_end: u32,
+}
+
+/// A loop is central (the torso) when the body axis crosses the middle of its x-extent,
+/// leaving at least this fraction of the extent on either side. Thighs that press into
+/// each other (a self-intersecting fit: each leg loop reaches past the axis) stay legs
+/// up to an overlap of 40 % of a thigh's width; a torso with one arm joined to it (the
+/// axis at a quarter to a third of the extent) stays the torso.
+pub const CENTRAL_MARGIN_OF_WIDTH: f64 = 0.2;
+
+/// Where a section loop lies relative to the body axis x = axis_x (left is +X).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Placement {
+    Central,
+    Left,
+    Right,
+}
+
+impl LoopInfo {
+    /// Where the loop lies relative to x = `axis_x`: central (see
+    /// [`CENTRAL_MARGIN_OF_WIDTH`]), else the side of its x-extent's middle.
+    pub fn placement(&self, axis_x: f64) -> Placement {
+        let margin = CENTRAL_MARGIN_OF_WIDTH * (self.x_max - self.x_min);
+        if self.x_min + margin <= axis_x && axis_x <= self.x_max - margin {
+            Placement::Central
+        } else if 0.5 * (self.x_min + self.x_max) > axis_x {
+            Placement::Left
+        } else {
+            Placement::Right
+        }
+    }
+}
+
+/// Perimeter, area and extent of a convex hull.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HullStats {
+    /// Perimeter of the hull, metres: the tape girth.
+    pub perimeter_m: f64,
+    /// Area of the hull, square metres.
+    pub area_m2: f64,
+    pub x_min: f64,
+    pub x_max: f64,
+    pub z_min: f64,
+    pub z_max: f64,
+}
+
+/// Buffers for one section at a time; reused between sections.
+#[derive(Debug, Clone, Default)]
+pub struct SectionScratch {
+    /// Section segments (x, z) endpoints, in triangle order.
+    segs: Vec<[DVec2; 2]>,
+    /// Triangle of each segment and the two triangle edges it crosses.
+    seg_tri: Vec<(u32, [u8; 2])>,
+    /// Which ends of each segment it lists for hulls (each crossing point once).
+    owned: Vec<[bool; 2]>,
+    /// Per mesh triangle: the segment it gave in the section numbered `stamp[t]`.
+    seg_of_tri: Vec<u32>,
+    stamp: Vec<u32>,
+    epoch: u32,
+    parent: Vec<u32>,
+    /// Loop label of each segment, then segments grouped by loop.
+    label: Vec<u32>,
+    grouped: Vec<u32>,
+    cursor: Vec<u32>,
+    loops: Vec<LoopInfo>,
+    points: Vec<DVec2>,
+    hull: Vec<DVec2>,
+}
+
+fn find(parent: &mut [u32], mut i: u32) -> u32 {
+    while parent[i as usize] != i {
+        let p = parent[i as usize];
+        parent[i as usize] = parent[p as usize];
+        i = p;
+    }
+    i
+}
+
+#[inline]
+fn ordered(a: u32, b: u32) -> (u32, u32) {
+    if a < b {
+        (a, b)
+    } else {
+        (b, a)
+    }
+}
+
+impl SectionScratch {
+    /// Cuts `mesh` at height `y` through the candidate triangles of `index` (built
+    /// for this mesh) and splits the cut into loops: segments of triangles that share
+    /// a crossed edge belong to the same loop.
+    pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
+        self.segs.clear();
+        self.seg_tri.clear();
+        if self.stamp.len() != mesh.triangles.len() {
+            self.stamp.clear();
+            self.stamp.resize(mesh.triangles.len(), 0);
+            self.seg_of_tri.clear();
+            self.seg_of_tri.resize(mesh.triangles.len(), 0);
+            self.epoch = 0;
+        }
+        self.epoch = self.epoch.wrapping_add(1);
+        if self.epoch == 0 {
+            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.epoch = 1;
+        }
+        let dist = |v: u32| {
+            let d = mesh.positions[v as usize].y - y;
+            if d.abs() < ON_PLANE_EPS_M {
+                ON_PLANE_EPS_M
+            } else {
+                d
+            }
+        };
+        for &ti in index.candidates(y) {
+            let t = mesh.triangles[ti as usize];
+            let d = t.map(dist);
+            let mut ends = [DVec2::ZERO; 2];
+            let mut edges = [0u8; 2];
+            let mut k = 0;
+            for e in 0..3 {
+                let (a, b) = (e, (e + 1) % 3);
+                if (d[a] > 0.0) != (d[b] > 0.0) && k < 2 {
+                    // Interpolate from the lower-indexed vertex so both triangles that
+                    // share the edge compute the bit-identical point.
+                    let (lo, hi) = ordered(t[a], t[b]);
+                    let (dl, dh) = if lo == t[a] {
+                        (d[a], d[b])
+                    } else {
+                        (d[b], d[a])
+                    };
+                    let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
+                    let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
+                    ends[k] = DVec2::new(p.x, p.z);
+                    edges[k] = e as u8;
+                    k += 1;
+                }
+            }
+            if k == 2 {
+                let s = self.segs.len() as u32;
+                self.segs.push(ends);
+                self.seg_tri.push((ti, edges));
+                self.stamp[ti as usize] = self.epoch;
+                self.seg_of_tri[ti as usize] = s;
+            }
+        }
+        // Union each segment with the segments of the triangles across its edges.
+        let n = self.segs.len();
+        self.parent.clear();
+        self.parent.extend(0..n as u32);
+        self.owned.clear();
+        for s in 0..n {
+            let (t, edges) = self.seg_tri[s];
+            let mut owned = [true; 2];
+            for (k, e) in edges.into_iter().enumerate() {
+                let nb = index
+                    .neighbours
+                    .get(t as usize)
+                    .map_or(NO_NEIGHBOUR, |n| n[e as usize]);
+                if nb == NO_NEIGHBOUR || self.stamp[nb as usize] != self.epoch {
+                    continue;
+                }
+                // The crossing point is shared with the neighbour: one of the two
+                // segments lists it for the hull.
+                owned[k] = nb > t;
+                let other = self.seg_of_tri[nb as usize];
+                let (ra, rb) = (
+                    find(&mut self.parent, s as u32),
+                    find(&mut self.parent, other),
+                );
+                if ra != rb {
+                    self.parent[ra as usize] = rb;
+                }
+            }
+            self.owned.push(owned);
+        }
+        // Label loops 0..L and group segments by loop (counting sort).
+        self.label.clear();
+        self.label.resize(n, u32::MAX);
+        self.loops.clear();
+        self.cursor.clear();
+        let mut root_label = std::mem::take(&mut self.grouped);
+        root_label.clear();
+        root_label.resize(n, u32::MAX);
+        for s in 0..n {
+            let r = find(&mut self.parent, s as u32) as usize;
+            if root_label[r] == u32::MAX {
+                root_label[r] = self.loops.len() as u32;
+                self.loops.push(LoopInfo {
+                    x_min: f64::INFINITY,
+                    x_max: f64::NEG_INFINITY,
+                    z_min: f64::INFINITY,
+                    z_max: f64::NEG_INFINITY,
+                    seg_start: 0,
+                    seg_end: 0,
+                });
+                self.cursor.push(0);
+            }
+            let l = root_label[r];
+            self.label[s] = l;
+            self.cursor[l as usize] += 1;
+            let info = &mut self.loops[l as usize];
+            for p in self.segs[s] {
+                info.x_min = info.x_min.min(p.x);
+                info.x_max = info.x_max.max(p.x);
+                info.z_min = info.z_min.min(p.y);
+                info.z_max = info.z_max.max(p.y);
+            }
+        }
+        let mut acc = 0u32;
+        for (info, c) in self.loops.iter_mut().zip(self.cursor.iter_mut()) {
+            info.seg_start = acc;
+            acc += *c;
+            info.seg_end = acc;
+            *c = info.seg_start;
+        }
+        root_label.clear();
+        root_label.resize(n, 0);
+        self.grouped = root_label;
+        for s in 0..n {
+            let l = self.label[s] as usize;
+            self.grouped[self.cursor[l] as usize] = s as u32;
+            self.cursor[l] += 1;
+        }
+    }
+
+    /// The loops of the last section.
+    pub fn loops(&self) -> &[LoopInfo] {
+        &self.loops
+    }
+
+    /// Convex hull of loop `i`, keeping only the parts of its segments with x in
+    /// `clip_x` when given (the hull of the clipped curve, for cutting off an arm that
+    /// touches the torso). `None` if fewer than 3 hull points remain.
+    pub fn loop_hull(&mut self, i: usize, clip_x: Option<(f64, f64)>) -> Option<HullStats> {
+        let info = *self.loops.get(i)?;
+        self.points.clear();
+        for &s in &self.grouped[info.seg_start as usize..info.seg_end as usize] {
+            let [a, b] = self.segs[s as usize];
+            match clip_x {
+                None => {
+                    let owned = self.owned[s as usize];
+                    if owned[0] {
+                        self.points.push(a);
+                    }
+                    if owned[1] {
+                        self.points.push(b);
+                    }
+                }
+                Some((x0, x1)) => {
+                    if let Some((p, q)) = clip_segment_x(a, b, x0, x1) {
+                        self.points.push(p);
+                        self.points.push(q);
+                    }
+                }
+            }
+        }
+        hull_stats(&mut self.points, &mut self.hull)
+    }
+
+    /// Convex hull of every loop of the section together.
+    pub fn whole_hull(&mut self) -> Option<HullStats> {
+        self.points.clear();
+        for s in &self.segs {
+            self.points.extend_from_slice(s);
+        }
+        hull_stats(&mut self.points, &mut self.hull)
+    }
+}
+
+/// The part of segment a-b with x in [x0, x1], if any.
+fn clip_segment_x(a: DVec2, b: DVec2, x0: f64, x1: f64) -> Option<(DVec2, DVec2)> {
+    let (mut t0, mut t1) = (0.0f64, 1.0f64);
+    let dx = b.x - a.x;
+    if dx.abs() < f64::EPSILON {
+        if a.x < x0 || a.x > x1 {
+            return None;
+        }
+    } else {
+        let (ta, tb) = ((x0 - a.x) / dx, (x1 - a.x) / dx);
+        let (lo, hi) = if ta < tb { (ta, tb) } else { (tb, ta) };
+        t0 = t0.max(lo);
+        t1 = t1.min(hi);
+        if t0 > t1 {
+            return None;
+        }
+    }
+    Some((a + (b - a) * t0, a + (b - a) * t1))
+}
+
+/// Andrew's monotone chain hull of `points` (sorted in place) into `hull`
+/// (counter-clockwise in (x, z), no collinear points), then its perimeter and area.
+pub fn hull_stats(points: &mut [DVec2], hull: &mut Vec<DVec2>) -> Option<HullStats> {
+    points.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    hull.clear();
+    let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
+    for &q in points.iter() {
+        while hull.len() >= 2 && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(q);
+    }
+    let lower = hull.len() + 1;
+    for &q in points.iter().rev().skip(1) {
+        while hull.len() >= lower && cross(hull[hull.len() - 2], hull[hull.len() - 1], q) <= 0.0 {
+            hull.pop();
+        }
+        hull.push(q);
+    }
+    hull.pop();
+    if hull.len() < 3 {
+        return None;
+    }
+    let mut stats = HullStats {
+        perimeter_m: 0.0,
+        area_m2: 0.0,
+        x_min: f64::INFINITY,
+        x_max: f64::NEG_INFINITY,
+        z_min: f64::INFINITY,
+        z_max: f64::NEG_INFINITY,
+    };
+    for i in 0..hull.len() {
+        let (p, q) = (hull[i], hull[(i + 1) % hull.len()]);
+        stats.perimeter_m += (q - p).length();
+        stats.area_m2 += 0.5 * p.perp_dot(q);
+        stats.x_min = stats.x_min.min(p.x);
+        stats.x_max = stats.x_max.max(p.x);
+        stats.z_min = stats.z_min.min(p.y);
+        stats.z_max = stats.z_max.max(p.y);
+    }
+    Some(stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::section::{hull_perimeter, slice, Plane};
+    use crate::mesh::shapes;
+
+    fn cut_all(mesh: &TriMesh, y: f64) -> SectionScratch {
+        let mut idx = LevelIndex::default();
+        let b = mesh.bounds().expect("non-empty test mesh");
+        idx.rebuild(mesh, b.min.y, b.max.y);
+        let mut s = SectionScratch::default();
+        s.cut(mesh, &idx, y);
+        s
+    }
+
+    #[test]
+    fn index_candidates_cover_every_crossing_triangle() {
+        let m = shapes::uv_sphere(0.3, 23, 31);
+        let mut idx = LevelIndex::default();
+        idx.rebuild(&m, -0.3, 0.3);
+        for k in 0..97 {
+            let y = -0.3 + 0.6 * (k as f64 + 0.37) / 97.0;
+            let cand = idx.candidates(y);
+            for (i, t) in m.triangles.iter().enumerate() {
+                let (lo, hi) = tri_y_range(&m, t);
+                if lo < y && hi > y {
+                    assert!(
+                        cand.contains(&(i as u32)),
+                        "triangle {i} crosses {y} but is not listed"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn hull_matches_mesh_section_hull() {
+        let m = shapes::uv_sphere(0.25, 17, 40);
+        for y in [-0.2, -0.05, 0.0013, 0.11, 0.2] {
+            let mut s = cut_all(&m, y);
+            assert_eq!(s.loops().len(), 1);
+            let mine = s.loop_hull(0, None).expect("hull").perimeter_m;
+            let pts: Vec<DVec2> = slice(&m, &Plane::horizontal(y))
+                .iter()
+                .flat_map(|l| l.points.clone())
+                .collect();
+            assert!(
+                (mine - hull_perimeter(&pts)).abs() < 1e-12,
+                "y {y}: {mine} vs {}",
+                hull_perimeter(&pts)
+            );
+        }
+    }
+
+    #[test]
+    fn two_separate_prisms_give_two_loops_and_clipping_cuts_one_short() {
+        let mut a = shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32);
+        let b = shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32);
+        let off = a.positions.len() as u32;
+        a.positions
+            .extend(b.positions.iter().map(|p| *p + DVec3::new(0.5, 0.0, 0.0)));
+        a.triangles
+            .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
+        let mut s = cut_all(&a, 0.5);
+        assert_eq!(s.loops().len(), 2);
+        let left = s
+            .loops()
+            .iter()
+            .position(|l| l.x_min > 0.25)
+            .expect("right-hand prism");
+        assert_eq!(s.loops()[left].placement(0.5), Placement::Central);
+        assert_eq!(s.loops()[left].placement(0.0), Placement::Left);
+        assert_eq!(s.loops()[left].placement(0.9), Placement::Right);
+        // The axis 3 cm inside a 0.2 m wide loop: not central.
+        assert_eq!(s.loops()[left].placement(0.43), Placement::Left);
+        assert_eq!(s.loops()[left].placement(0.45), Placement::Central);
+        // Clipping a disc of radius r to |x - c| <= r/2 leaves a hull of perimeter
+        // 2 (r sqrt(3)) + 2 (r pi / 3) on the true circle; the 32-gon is close to it.
+        let clipped = s
+            .loop_hull(left, Some((0.45, 0.55)))
+            .expect("clipped hull")
+            .perimeter_m;
+        let r = 0.1;
+        let expect = 2.0 * r * 3f64.sqrt() + 2.0 * r * std::f64::consts::PI / 3.0;
+        assert!((clipped - expect).abs() < 2e-3, "{clipped} vs {expect}");
+        let whole = s.whole_hull().expect("whole").perimeter_m;
+        let circle = 2.0 * 32.0 * r * (std::f64::consts::PI / 32.0).sin();
+        assert!((whole - (circle + 2.0 * 0.5)).abs() < 1e-9, "{whole}");
+    }
+}

@@ -1,0 +1,256 @@
+//! The pipeline runner shared by replay and the live station: a frame source on its own
+//! thread, a bounded queue where the newest frame pair wins, a processing stage that turns
+//! frame pairs into [`FitSnapshot`]s, and per-stage timing.
+//!
+//! The snapshot is deliberately made of plain data (pixels, station-frame points, mm),
+//! so the screen, `report.json` and tests read it without knowing the stages' types.
+//!
+//! Threads: `capture` (runs the [`FrameSource`]) -> [`LatestSlot`] (capacity one, newest
+//! wins, dropped frames counted) -> `process` (the caller's [`FrameProcessor`]) ->
+//! [`LatestSlot`] of snapshots read by the screen or the replay loop.
+
+pub mod smooth;
+pub mod timing;
+
+use crate::camera::StationCalibration;
+use crate::mesh::TriMesh;
+use glam::{DVec2, DVec3};
+use image::RgbImage;
+use std::sync::{Arc, Condvar, Mutex};
+
+/// Two frames captured at the same moment.
+#[derive(Debug, Clone)]
+pub struct FramePair {
+    /// Running index from the start of the source (recording frame index for replay).
+    pub index: u64,
+    /// Capture time in seconds from the start of the source.
+    pub timestamp_s: f64,
+    pub front: RgbImage,
+    pub side: RgbImage,
+}
+
+/// Why a source could not give a frame pair.
+#[derive(Debug, Clone, thiserror::Error)]
+pub enum SourceError {
+    /// A transient problem (a corrupt frame, a camera hiccup): skip and keep going.
+    #[error("frame skipped: {0}")]
+    Skipped(String),
+    /// The device is gone (unplugged); the source may come back by itself.
+    #[error("camera disconnected: {0}")]
+    Disconnected(String),
+    /// The source cannot continue.
+    #[error("{0}")]
+    Fatal(String),
+}
+
+/// Anything that yields frame pairs: a recording, two cameras, a test generator.
+pub trait FrameSource: Send {
+    /// The next pair, `Ok(None)` at the end of a finite source.
+    fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError>;
+    /// The calibration the frames belong to, when known.
+    fn calibration(&self) -> Option<&StationCalibration>;
+    /// Nominal frame rate (frames per second), when known.
+    fn fps(&self) -> Option<f64> {
+        None
+    }
+    /// A short human-readable name ("recording demo", "cameras 0+1").
+    fn describe(&self) -> String;
+}
+
+/// Where the fit is in its life, as shown to the shopper and the operator.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    /// Learning the empty backdrop.
+    LearningBackdrop,
+    /// Backdrop known, nobody on the mark.
+    WaitingForSubject,
+    /// A subject is seen but the frame has a bad verdict (see `messages`).
+    Guiding,
+    /// Fitting frame after frame.
+    Fitting,
+    /// Measurements have settled.
+    Settled,
+}
+
+/// One measurement as displayed: value in mm and its frame-to-frame stability.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct MeasurementValue {
+    /// Report key, e.g. "chest_girth".
+    pub name: String,
+    pub value_mm: f64,
+    /// Spread of the recent values (mm); small means settled.
+    pub stability_mm: f64,
+}
+
+/// Overlay data of one camera view, in that camera's (distorted) pixels.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct ViewOverlay {
+    /// Silhouette outline (ordered, closed).
+    pub contour: Vec<DVec2>,
+    /// Named contour parts with their points ("left arm", "torso front", ...).
+    pub parts: Vec<(String, Vec<DVec2>)>,
+    /// Named landmarks and joints.
+    pub landmarks: Vec<(String, DVec2)>,
+    /// Skeleton bones as pixel segments.
+    pub bones: Vec<(DVec2, DVec2)>,
+    /// The fitted avatar's projected silhouette outline, when there is a fit.
+    pub avatar_outline: Vec<DVec2>,
+}
+
+/// What processing one frame pair produced: everything the screen and reports show.
+#[derive(Debug, Clone)]
+pub struct FitSnapshot {
+    pub frame_index: u64,
+    pub phase: Phase,
+    /// Messages for the shopper/operator (frame verdicts, errors), most important first.
+    pub messages: Vec<String>,
+    pub front: ViewOverlay,
+    pub side: ViewOverlay,
+    /// Named landmarks in the station frame (metres).
+    pub landmarks_station: Vec<(String, DVec3)>,
+    /// The current avatar (station frame, metres), shared to avoid copies.
+    pub avatar: Option<Arc<TriMesh>>,
+    pub measurements: Vec<MeasurementValue>,
+    /// Per-stage durations of this frame, milliseconds, in pipeline order.
+    pub timings_ms: Vec<(String, f64)>,
+    /// The frames themselves (shared, never written anywhere unless recording).
+    pub front_frame: Option<Arc<RgbImage>>,
+    pub side_frame: Option<Arc<RgbImage>>,
+}
+
+impl FitSnapshot {
+    pub fn empty(frame_index: u64, phase: Phase) -> Self {
+        FitSnapshot {
+            frame_index,
+            phase,
+            messages: Vec::new(),
+            front: ViewOverlay::default(),
+            side: ViewOverlay::default(),
+            landmarks_station: Vec::new(),
+            avatar: None,
+            measurements: Vec::new(),
+            timings_ms: Vec::new(),
+            front_frame: None,
+            side_frame: None,
+        }
+    }
+}
+
+/// The processing stage: frame pairs in, snapshots out. Owns all per-frame state.
+pub trait FrameProcessor: Send {
+    fn process(&mut self, pair: &FramePair) -> FitSnapshot;
+    /// Forget the subject (idle timeout, privacy): keep the backdrop and calibration.
+    fn reset_subject(&mut self) {}
+}
+
+/// A single-slot mailbox: `put` replaces whatever is there (newest wins, the replaced
+/// item is counted as dropped), `take` waits for an item. Bounded by construction: a
+/// slow consumer never makes the producer queue frames.
+pub struct LatestSlot<T> {
+    inner: Mutex<SlotState<T>>,
+    ready: Condvar,
+}
+
+struct SlotState<T> {
+    item: Option<T>,
+    closed: bool,
+    dropped: u64,
+}
+
+impl<T> Default for LatestSlot<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<T> LatestSlot<T> {
+    pub fn new() -> Self {
+        LatestSlot {
+            inner: Mutex::new(SlotState {
+                item: None,
+                closed: false,
+                dropped: 0,
+            }),
+            ready: Condvar::new(),
+        }
+    }
+    fn lock(&self) -> std::sync::MutexGuard<'_, SlotState<T>> {
+        // A poisoned lock only means another thread panicked mid-put; the data is a
+        // plain Option and stays usable.
+        self.inner.lock().unwrap_or_else(|e| e.into_inner())
+    }
+    /// Puts an item, replacing (and counting) an unconsumed one.
+    pub fn put(&self, item: T) {
+        let mut s = self.lock();
+        if s.item.replace(item).is_some() {
+            s.dropped += 1;
+        }
+        self.ready.notify_all();
+    }
+    /// Waits for an item; `None` once closed and empty.
+    pub fn take(&self) -> Option<T> {
+        let mut s = self.lock();
+        loop {
+            if let Some(it) = s.item.take() {
+                return Some(it);
+            }
+            if s.closed {
+                return None;
+            }
+            s = self.ready.wait(s).unwrap_or_else(|e| e.into_inner());
+        }
+    }
+    /// Takes an item if one is there, without waiting.
+    pub fn try_take(&self) -> Option<T> {
+        self.lock().item.take()
+    }
+    /// No more items will come.
+    pub fn close(&self) {
+        self.lock().closed = true;
+        self.ready.notify_all();
+    }
+    pub fn is_closed(&self) -> bool {
+        self.lock().closed
+    }
+    /// How many items were replaced before being taken.
+    pub fn dropped(&self) -> u64 {
+        self.lock().dropped
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn newest_wins_and_drops_are_counted() {
+        let s = LatestSlot::new();
+        s.put(1);
+        s.put(2);
+        s.put(3);
+        assert_eq!(s.take(), Some(3));
+        assert_eq!(s.dropped(), 2);
+        s.close();
+        assert_eq!(s.take(), None);
+    }
+
+    #[test]
+    fn take_waits_for_a_producer() {
+        let s = Arc::new(LatestSlot::new());
+        let p = s.clone();
+        let h = std::thread::spawn(move || {
+            for i in 0..100 {
+                p.put(i);
+            }
+            p.close();
+        });
+        let mut last = -1;
+        while let Some(v) = s.take() {
+            assert!(v > last);
+            last = v;
+        }
+        h.join().ok();
+        assert_eq!(last, 99);
+    }
+}

@@ -1,0 +1,89 @@
+//! Measurement smoothing over frames: each measurement keeps a short window of recent
+//! values; the shown value is their median (robust to a bad frame) and the stability is
+//! their spread (max - min, mm), which falls as the fit settles.
+
+use std::collections::VecDeque;
+
+/// Frames a measurement's window holds.
+pub const WINDOW: usize = 9;
+
+/// A sliding window of one measurement's recent values (mm).
+#[derive(Debug, Clone, Default)]
+pub struct SmoothedValue {
+    recent: VecDeque<f64>,
+}
+
+impl SmoothedValue {
+    pub fn push(&mut self, value_mm: f64) {
+        if !value_mm.is_finite() {
+            return;
+        }
+        if self.recent.len() == WINDOW {
+            self.recent.pop_front();
+        }
+        self.recent.push_back(value_mm);
+    }
+    /// Median of the window (None before the first value).
+    pub fn value(&self) -> Option<f64> {
+        if self.recent.is_empty() {
+            return None;
+        }
+        let mut v: Vec<f64> = self.recent.iter().copied().collect();
+        v.sort_by(|a, b| a.total_cmp(b));
+        let n = v.len();
+        Some(if n % 2 == 1 {
+            v[n / 2]
+        } else {
+            0.5 * (v[n / 2 - 1] + v[n / 2])
+        })
+    }
+    /// Spread of the window (mm); infinite until three values are in.
+    pub fn stability(&self) -> f64 {
+        if self.recent.len() < 3 {
+            return f64::INFINITY;
+        }
+        let lo = self.recent.iter().copied().fold(f64::MAX, f64::min);
+        let hi = self.recent.iter().copied().fold(f64::MIN, f64::max);
+        hi - lo
+    }
+    /// Largest change between consecutive values in the window (mm).
+    pub fn max_step(&self) -> f64 {
+        self.recent
+            .iter()
+            .zip(self.recent.iter().skip(1))
+            .map(|(a, b)| (b - a).abs())
+            .fold(0.0, f64::max)
+    }
+    pub fn len(&self) -> usize {
+        self.recent.len()
+    }
+    pub fn is_empty(&self) -> bool {
+        self.recent.is_empty()
+    }
+    pub fn clear(&mut self) {
+        self.recent.clear();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_ignores_one_outlier_and_stability_settles() {
+        let mut s = SmoothedValue::default();
+        assert_eq!(s.value(), None);
+        for v in [900.0, 901.0, 1500.0, 899.0, 900.5] {
+            s.push(v);
+        }
+        assert_eq!(s.value(), Some(900.5));
+        assert!(s.stability() > 500.0);
+        for _ in 0..WINDOW {
+            s.push(900.0);
+        }
+        assert_eq!(s.stability(), 0.0);
+        assert_eq!(s.max_step(), 0.0);
+        s.push(f64::NAN);
+        assert_eq!(s.len(), WINDOW);
+    }
+}

@@ -1,0 +1,618 @@
+//! H.264 in MP4: one video track per file, encoded with OpenH264 (built from source by
+//! the `openh264` crate) and muxed/demuxed with the `mp4` crate.
+//!
+//! # Stream layout written
+//! - One `avc1` track, timescale [`TIMESCALE`], constant frame duration from the fps.
+//! - Samples are length-prefixed NAL units (4-byte big-endian lengths), as MP4 requires.
+//!   SPS and PPS go into the `avcC` box and are also kept in-band in every IDR sample,
+//!   so a file cut before its index (`moov`, written last) can still be recovered from
+//!   the media data alone.
+//! - An IDR frame every [`IDR_PERIOD_FRAMES`] frames.
+//!
+//! # Reading
+//! Decoding restarts at the last IDR frame at or before a requested frame when going
+//! back or jumping ahead. MP4 samples are converted to Annex-B (start codes) and, on sync samples, the avcC
+//! SPS/PPS are prepended before they reach the decoder (stack.md "Video files"). A file
+//! without a readable index is scanned: the `mdat` payload is walked NAL by NAL and
+//! every complete picture is decoded; the rest is reported.
+
+use image::RgbImage;
+use openh264::decoder::Decoder;
+use openh264::encoder::{
+    BitRate, Encoder, EncoderConfig, FrameRate, FrameType, IntraFramePeriod, RateControlMode,
+};
+use openh264::formats::{RgbSliceU8, YUVBuffer, YUVSource};
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::path::{Path, PathBuf};
+
+/// Media timescale of the written tracks (ticks per second).
+pub const TIMESCALE: u32 = 90_000;
+/// Frames between IDR (key) frames.
+pub const IDR_PERIOD_FRAMES: u32 = 30;
+/// Bits per pixel per frame of the target bit rate (0.2 bpp: 720p30 at ~5.5 Mbit/s).
+pub const BITS_PER_PIXEL: f64 = 0.2;
+const NAL_SPS: u8 = 7;
+const NAL_PPS: u8 = 8;
+const NAL_IDR: u8 = 5;
+const NAL_SLICE: u8 = 1;
+const START_CODE: [u8; 4] = [0, 0, 0, 1];
+
+/// Errors of MP4/H.264 files.
+#[derive(Debug, thiserror::Error)]
+pub enum VideoError {
+    #[error("{file}: {msg}")]
+    File { file: PathBuf, msg: String },
+    #[error("{file}: {source}")]
+    Io {
+        file: PathBuf,
+        source: std::io::Error,
+    },
+}
+
+fn verr(file: &Path, msg: impl Into<String>) -> VideoError {
+    VideoError::File {
+        file: file.to_path_buf(),
+        msg: msg.into(),
+    }
+}
+
+/// Splits an Annex-B byte stream into NAL units (without start codes).
+pub fn annexb_nals(stream: &[u8]) -> Vec<&[u8]> {
+    let mut starts = Vec::new();
+    let mut i = 0;
+    while i + 3 <= stream.len() {
+        if stream[i] == 0 && stream[i + 1] == 0 && stream[i + 2] == 1 {
+            starts.push((i, i + 3));
+            i += 3;
+        } else {
+            i += 1;
+        }
+    }
+    let mut out = Vec::with_capacity(starts.len());
+    for (k, &(_, payload)) in starts.iter().enumerate() {
+        let mut end = starts.get(k + 1).map_or(stream.len(), |s| s.0);
+        // A 4-byte start code leaves a zero before the next 3-byte code.
+        while end > payload && stream[end - 1] == 0 && k + 1 < starts.len() {
+            end -= 1;
+        }
+        if end > payload {
+            out.push(&stream[payload..end]);
+        }
+    }
+    out
+}
+
+/// Writes one H.264 MP4 file frame by frame.
+pub struct Mp4VideoWriter {
+    path: PathBuf,
+    encoder: Encoder,
+    mp4: Option<mp4::Mp4Writer<BufWriter<File>>>,
+    file: Option<BufWriter<File>>,
+    width: u32,
+    height: u32,
+    frame_ticks: u32,
+    frames: u64,
+    yuv: YUVBuffer,
+    sample: Vec<u8>,
+}
+
+impl Mp4VideoWriter {
+    /// Creates `path` for `width` x `height` frames (both even) at `fps`.
+    pub fn create(path: &Path, width: u32, height: u32, fps: f64) -> Result<Self, VideoError> {
+        if !width.is_multiple_of(2) || !height.is_multiple_of(2) || width == 0 || height == 0 {
+            return Err(verr(
+                path,
+                format!("H.264 needs even frame sizes, got {width}x{height}"),
+            ));
+        }
+        if !(fps > 0.0 && fps <= 240.0) {
+            return Err(verr(path, format!("frame rate {fps} out of range")));
+        }
+        let bitrate = (BITS_PER_PIXEL * width as f64 * height as f64 * fps) as u32;
+        let config = EncoderConfig::new()
+            .bitrate(BitRate::from_bps(bitrate))
+            .max_frame_rate(FrameRate::from_hz(fps as f32))
+            .rate_control_mode(RateControlMode::Bufferbased)
+            .skip_frames(false)
+            .intra_frame_period(IntraFramePeriod::from_num_frames(IDR_PERIOD_FRAMES));
+        let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
+            .map_err(|e| verr(path, format!("H.264 encoder: {e}")))?;
+        let file = File::create(path).map_err(|source| VideoError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        Ok(Mp4VideoWriter {
+            path: path.to_path_buf(),
+            encoder,
+            mp4: None,
+            file: Some(BufWriter::new(file)),
+            width,
+            height,
+            frame_ticks: (TIMESCALE as f64 / fps).round() as u32,
+            frames: 0,
+            yuv: YUVBuffer::new(width as usize, height as usize),
+            sample: Vec::new(),
+        })
+    }
+
+    /// Encodes and appends one frame.
+    pub fn push(&mut self, frame: &RgbImage) -> Result<(), VideoError> {
+        if frame.width() != self.width || frame.height() != self.height {
+            return Err(verr(
+                &self.path,
+                format!(
+                    "frame is {}x{}, the video {}x{}",
+                    frame.width(),
+                    frame.height(),
+                    self.width,
+                    self.height
+                ),
+            ));
+        }
+        let src = RgbSliceU8::new(frame.as_raw(), (self.width as usize, self.height as usize));
+        self.yuv.read_rgb8(src);
+        let path = self.path.clone();
+        let bits = self
+            .encoder
+            .encode(&self.yuv)
+            .map_err(|e| verr(&path, format!("H.264 encode: {e}")))?;
+        if matches!(bits.frame_type(), FrameType::Skip | FrameType::Invalid) {
+            return Err(verr(&path, "the encoder skipped a frame"));
+        }
+        let annexb = bits.to_vec();
+        let nals = annexb_nals(&annexb);
+        self.sample.clear();
+        let mut sps = None;
+        let mut pps = None;
+        let mut sync = false;
+        for nal in &nals {
+            let Some(&head) = nal.first() else { continue };
+            match head & 0x1f {
+                NAL_SPS => sps = Some(nal.to_vec()),
+                NAL_PPS => pps = Some(nal.to_vec()),
+                NAL_IDR => sync = true,
+                _ => {}
+            }
+            self.sample
+                .extend_from_slice(&(nal.len() as u32).to_be_bytes());
+            self.sample.extend_from_slice(nal);
+        }
+        if self.mp4.is_none() {
+            let (Some(sps), Some(pps)) = (sps, pps) else {
+                return Err(verr(&path, "the first encoded frame carries no SPS/PPS"));
+            };
+            let file = self
+                .file
+                .take()
+                .ok_or_else(|| verr(&path, "writer already finished"))?;
+            let config = mp4::Mp4Config {
+                major_brand: str::parse("isom").map_err(|_| verr(&path, "brand"))?,
+                minor_version: 512,
+                compatible_brands: ["isom", "iso2", "avc1", "mp41"]
+                    .iter()
+                    .filter_map(|b| str::parse(b).ok())
+                    .collect(),
+                timescale: TIMESCALE,
+            };
+            let mut w = mp4::Mp4Writer::write_start(file, &config)
+                .map_err(|e| verr(&path, e.to_string()))?;
+            let track = mp4::TrackConfig {
+                track_type: mp4::TrackType::Video,
+                timescale: TIMESCALE,
+                language: "und".into(),
+                media_conf: mp4::MediaConfig::AvcConfig(mp4::AvcConfig {
+                    width: self.width as u16,
+                    height: self.height as u16,
+                    seq_param_set: sps,
+                    pic_param_set: pps,
+                }),
+            };
+            w.add_track(&track)
+                .map_err(|e| verr(&path, e.to_string()))?;
+            self.mp4 = Some(w);
+        }
+        let sample = mp4::Mp4Sample {
+            start_time: self.frames * self.frame_ticks as u64,
+            duration: self.frame_ticks,
+            rendering_offset: 0,
+            is_sync: sync,
+            bytes: bytes::Bytes::copy_from_slice(&self.sample),
+        };
+        if let Some(w) = self.mp4.as_mut() {
+            w.write_sample(1, &sample)
+                .map_err(|e| verr(&path, e.to_string()))?;
+        }
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Writes the index (`moov`) and closes the file.
+    pub fn finish(mut self) -> Result<u64, VideoError> {
+        let path = self.path.clone();
+        let Some(mut w) = self.mp4.take() else {
+            return Err(verr(&path, "no frames were written"));
+        };
+        w.write_end().map_err(|e| verr(&path, e.to_string()))?;
+        let mut inner = w.into_writer();
+        std::io::Write::flush(&mut inner).map_err(|source| VideoError::Io {
+            file: path.clone(),
+            source,
+        })?;
+        Ok(self.frames)
+    }
+}
+
+/// Where a picture's NAL units are in the file (recovery without an index).
+#[derive(Debug, Clone)]
+struct RawPicture {
+    /// (offset, length) of each NAL unit belonging to this picture, file order.
+    nals: Vec<(u64, u32)>,
+    /// An IDR picture (decoding may start here).
+    idr: bool,
+}
+
+enum Index {
+    /// The MP4 index: the reader and the track id.
+    Track {
+        reader: Box<mp4::Mp4Reader<BufReader<File>>>,
+        track: u32,
+        sps: Vec<u8>,
+        pps: Vec<u8>,
+    },
+    /// No usable index: pictures found by walking the media data.
+    Scanned {
+        file: BufReader<File>,
+        pictures: Vec<RawPicture>,
+    },
+}
+
+/// Reads one H.264 MP4 file frame by frame (sequential reading is cheap; going back
+/// restarts decoding from the first frame).
+pub struct Mp4VideoReader {
+    path: PathBuf,
+    index: Index,
+    decoder: Decoder,
+    len: usize,
+    width: u32,
+    height: u32,
+    /// Index of the next frame the decoder will produce.
+    next: usize,
+    /// Frames that start a closed group (IDR), ascending; decoding may restart there.
+    sync: Vec<usize>,
+    last: Option<(usize, RgbImage)>,
+    annexb: Vec<u8>,
+    warnings: Vec<String>,
+}
+
+impl Mp4VideoReader {
+    pub fn open(path: &Path) -> Result<Self, VideoError> {
+        let file = File::open(path).map_err(|source| VideoError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        let size = file
+            .metadata()
+            .map_err(|source| VideoError::Io {
+                file: path.to_path_buf(),
+                source,
+            })?
+            .len();
+        let mut warnings = Vec::new();
+        let index = match Self::open_index(path, &file, size) {
+            Ok(i) => i,
+            Err(msg) => {
+                let pictures = scan_mdat(path, size)?;
+                warnings.push(format!(
+                    "{}: {msg}; recovered {} frame(s) from the media data (file cut short?)",
+                    path.display(),
+                    pictures.len()
+                ));
+                let f = File::open(path).map_err(|source| VideoError::Io {
+                    file: path.to_path_buf(),
+                    source,
+                })?;
+                Index::Scanned {
+                    file: BufReader::new(f),
+                    pictures,
+                }
+            }
+        };
+        let sync: Vec<usize> = match &index {
+            Index::Track { reader, track, .. } => {
+                let t = reader.tracks().get(track);
+                match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
+                    // No sync table: every sample is a sync sample (ISO 14496-12).
+                    None => (0..t.map_or(0, |t| t.sample_count() as usize)).collect(),
+                    Some(stss) => stss
+                        .entries
+                        .iter()
+                        .filter(|&&e| e >= 1)
+                        .map(|&e| e as usize - 1)
+                        .collect(),
+                }
+            }
+            Index::Scanned { pictures, .. } => pictures
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.idr)
+                .map(|(i, _)| i)
+                .collect(),
+        };
+        let (len, width, height) = match &index {
+            Index::Track { reader, track, .. } => {
+                let t = reader
+                    .tracks()
+                    .get(track)
+                    .ok_or_else(|| verr(path, "track vanished"))?;
+                (
+                    t.sample_count() as usize,
+                    t.width() as u32,
+                    t.height() as u32,
+                )
+            }
+            Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
+        };
+        let decoder = Decoder::new().map_err(|e| verr(path, format!("H.264 decoder: {e}")))?;
+        Ok(Mp4VideoReader {
+            path: path.to_path_buf(),
+            index,
+            decoder,
+            len,
+            width,
+            height,
+            next: 0,
+            sync,
+            last: None,
+            annexb: Vec::new(),
+            warnings,
+        })
+    }
+
+    fn open_index(path: &Path, file: &File, size: u64) -> Result<Index, String> {
+        let f = file.try_clone().map_err(|e| e.to_string())?;
+        let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size)
+            .map_err(|e| format!("no readable MP4 index ({e})"))?;
+        let track = reader
+            .tracks()
+            .iter()
+            .filter(|(_, t)| matches!(t.media_type(), Ok(mp4::MediaType::H264)))
+            .map(|(id, _)| *id)
+            .min()
+            .ok_or_else(|| format!("{}: no H.264 video track", path.display()))?;
+        let t = reader.tracks().get(&track).ok_or("track vanished")?;
+        let sps = t
+            .sequence_parameter_set()
+            .map_err(|e| e.to_string())?
+            .to_vec();
+        let pps = t
+            .picture_parameter_set()
+            .map_err(|e| e.to_string())?
+            .to_vec();
+        Ok(Index::Track {
+            reader: Box::new(reader),
+            track,
+            sps,
+            pps,
+        })
+    }
+
+    /// Number of frames the file holds (per its index, or recovered).
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// Frame size from the track header (0 until known for recovered files).
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// Problems met so far (recovery, undecodable frames).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// Decodes frame `k`.
+    pub fn frame(&mut self, k: usize) -> Result<RgbImage, VideoError> {
+        if k >= self.len {
+            return Err(verr(
+                &self.path,
+                format!("frame {k} beyond the {} frames", self.len),
+            ));
+        }
+        if let Some((i, img)) = &self.last {
+            if *i == k {
+                return Ok(img.clone());
+            }
+        }
+        // Restart at the last IDR frame at or before k when going back or when that
+        // IDR lies ahead of the decoder (skips decoding frames nobody asked for).
+        let restart = self
+            .sync
+            .iter()
+            .rev()
+            .find(|&&i| i <= k)
+            .copied()
+            .unwrap_or(0);
+        if k < self.next || restart > self.next {
+            self.decoder =
+                Decoder::new().map_err(|e| verr(&self.path, format!("H.264 decoder: {e}")))?;
+            self.next = restart;
+        }
+        let mut out = None;
+        while self.next <= k {
+            let i = self.next;
+            self.next += 1;
+            let decoded = self.decode_sample(i);
+            if i == k {
+                out = Some(decoded?);
+            } else if let Err(e) = decoded {
+                self.warnings.push(e.to_string());
+            }
+        }
+        let img = out.ok_or_else(|| verr(&self.path, format!("frame {k} not decoded")))?;
+        self.last = Some((k, img.clone()));
+        Ok(img)
+    }
+
+    fn decode_sample(&mut self, i: usize) -> Result<RgbImage, VideoError> {
+        let path = self.path.clone();
+        self.annexb.clear();
+        match &mut self.index {
+            Index::Track {
+                reader,
+                track,
+                sps,
+                pps,
+            } => {
+                let sample = reader
+                    .read_sample(*track, i as u32 + 1)
+                    .map_err(|e| verr(&path, format!("frame {i}: {e}")))?
+                    .ok_or_else(|| verr(&path, format!("frame {i}: missing sample")))?;
+                if sample.is_sync {
+                    for ps in [&*sps, &*pps] {
+                        self.annexb.extend_from_slice(&START_CODE);
+                        self.annexb.extend_from_slice(ps);
+                    }
+                }
+                let b: &[u8] = &sample.bytes;
+                let mut p = 0usize;
+                while p + 4 <= b.len() {
+                    let n = u32::from_be_bytes([b[p], b[p + 1], b[p + 2], b[p + 3]]) as usize;
+                    p += 4;
+                    if n == 0 || p + n > b.len() {
+                        return Err(verr(&path, format!("frame {i}: corrupt NAL length")));
+                    }
+                    self.annexb.extend_from_slice(&START_CODE);
+                    self.annexb.extend_from_slice(&b[p..p + n]);
+                    p += n;
+                }
+            }
+            Index::Scanned { file, pictures } => {
+                let pic = pictures
+                    .get(i)
+                    .ok_or_else(|| verr(&path, format!("frame {i} missing")))?;
+                for &(off, n) in &pic.nals {
+                    file.seek(SeekFrom::Start(off))
+                        .map_err(|source| VideoError::Io {
+                            file: path.clone(),
+                            source,
+                        })?;
+                    let start = self.annexb.len() + START_CODE.len();
+                    self.annexb.extend_from_slice(&START_CODE);
+                    self.annexb.resize(start + n as usize, 0);
+                    file.read_exact(&mut self.annexb[start..])
+                        .map_err(|source| VideoError::Io {
+                            file: path.clone(),
+                            source,
+                        })?;
+                }
+            }
+        }
+        let yuv = self
+            .decoder
+            .decode(&self.annexb)
+            .map_err(|e| verr(&path, format!("frame {i}: H.264 decode: {e}")))?
+            .ok_or_else(|| verr(&path, format!("frame {i}: the decoder returned no picture")))?;
+        let (w, h) = yuv.dimensions();
+        let mut img = RgbImage::new(w as u32, h as u32);
+        yuv.write_rgb8(img.as_mut());
+        self.width = w as u32;
+        self.height = h as u32;
+        Ok(img)
+    }
+}
+
+/// Walks the top-level boxes to the `mdat` payload and splits it into pictures: NAL
+/// units are 4-byte length-prefixed; a picture ends with its slice (one slice per
+/// picture, as written here). Stops at the first NAL that runs past the end.
+fn scan_mdat(path: &Path, size: u64) -> Result<Vec<RawPicture>, VideoError> {
+    let io = |source| VideoError::Io {
+        file: path.to_path_buf(),
+        source,
+    };
+    let mut f = BufReader::new(File::open(path).map_err(io)?);
+    let mut pos = 0u64;
+    let mut head = [0u8; 8];
+    while pos + 8 <= size {
+        f.seek(SeekFrom::Start(pos)).map_err(io)?;
+        f.read_exact(&mut head).map_err(io)?;
+        let mut box_size = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as u64;
+        let kind = &head[4..8];
+        let mut header = 8u64;
+        if box_size == 1 {
+            let mut big = [0u8; 8];
+            f.read_exact(&mut big).map_err(io)?;
+            box_size = u64::from_be_bytes(big);
+            header = 16;
+        }
+        if kind == b"mdat" {
+            // An unfinished file still holds the placeholder size of an empty mdat (the
+            // mp4 crate writes the real size last): then the media data run to the end.
+            let end = if box_size <= header + 8 || pos + box_size > size {
+                size
+            } else {
+                pos + box_size
+            };
+            let mut payload = pos + header;
+            // The mp4 crate reserves 8 bytes for a 64-bit size as a `wide` box inside.
+            let mut wide = [0u8; 8];
+            if payload + 8 <= end && f.read_exact(&mut wide).is_ok() && &wide[4..8] == b"wide" {
+                payload += 8;
+            }
+            return scan_nals(&mut f, payload, end, path);
+        }
+        if box_size < 8 {
+            break;
+        }
+        pos += box_size;
+    }
+    Err(verr(
+        path,
+        "no media data (mdat) found: not an MP4 file or cut before any frame",
+    ))
+}
+
+fn scan_nals(
+    f: &mut BufReader<File>,
+    start: u64,
+    end: u64,
+    path: &Path,
+) -> Result<Vec<RawPicture>, VideoError> {
+    let io = |source| VideoError::Io {
+        file: path.to_path_buf(),
+        source,
+    };
+    let mut pictures = Vec::new();
+    let mut current = RawPicture {
+        nals: Vec::new(),
+        idr: false,
+    };
+    let mut pos = start;
+    let mut len4 = [0u8; 4];
+    let mut first = [0u8; 1];
+    while pos + 5 <= end {
+        f.seek(SeekFrom::Start(pos)).map_err(io)?;
+        f.read_exact(&mut len4).map_err(io)?;
+        let n = u32::from_be_bytes(len4);
+        if n == 0 || pos + 4 + n as u64 > end {
+            break;
+        }
+        f.read_exact(&mut first).map_err(io)?;
+        current.nals.push((pos + 4, n));
+        let kind = first[0] & 0x1f;
+        if kind == NAL_IDR || kind == NAL_SLICE {
+            current.idr = kind == NAL_IDR;
+            pictures.push(std::mem::replace(
+                &mut current,
+                RawPicture {
+                    nals: Vec::new(),
+                    idr: false,
+                },
+            ));
+        }
+        pos += 4 + n as u64;
+    }
+    Ok(pictures)
+}

@@ -1,0 +1,954 @@
+//! Segmentation of the person in a kiosk frame (issue 4, step 2).
+//!
+//! A per-pixel background model is learned from empty-scene frames. A pixel is background
+//! when it lies within the noise radius of the model colour, or when it differs only in
+//! brightness within `[shadow_min_brightness, highlight_max_brightness]` with little
+//! chromaticity change (Horprasert, Harwood and Davis 1999: brightness distortion
+//! `alpha = I.E/|E|^2`, chromaticity distortion `|I - alpha E|`). That tolerates sensor
+//! noise, small exposure changes and the shadow at the feet. Everything is evaluated
+//! without per-pixel division: with `d = I - E`, `|I - alpha E|^2 |E|^2 = |d|^2 |E|^2 -
+//! (d.E)^2` and `alpha - 1 = d.E / |E|^2`.
+//!
+//! Per frame: the test runs on every second pixel of every second row (a 2x coarse
+//! grid), the coarse mask is cleaned by a 3x3 majority filter, its largest 8-connected
+//! component is kept with its holes filled, and the full-resolution mask is that
+//! component upsampled, with every pixel within one coarse cell of its border re-tested
+//! at full resolution (then a 3x3 majority among those pixels). The model keeps
+//! adapting slowly (a running mean) on a rotating band of rows, away from the person.
+//!
+//! Still images (the paper's case) go through [`key_still`]: against an empty-scene image
+//! if there is one, else against a backdrop colour keyed from the image border.
+//!
+//! # Conventions
+//! Pixels (column, row), origin at the top-left pixel; masks are 0/255, full resolution;
+//! colours are 8-bit sRGB values used as they are (no linearisation).
+
+use crate::imgproc::{self, RunComponents, MASK_ON};
+use image::RgbImage;
+
+/// Subsampling factor of the coarse grid.
+pub const COARSE: u32 = 2;
+/// Rows of the model updated per frame: one in `ADAPT_ROW_STRIDE`.
+const ADAPT_ROW_STRIDE: u64 = 32;
+/// Margin around the person's box (pixels) kept out of adaptation.
+const ADAPT_MARGIN_PX: u32 = 24;
+/// Sensor noise assumed when the model was learned from a single frame (8-bit units).
+const DEFAULT_NOISE_SIGMA: f32 = 4.0;
+/// Width of the border strips used to key a still image's backdrop (pixels).
+const KEY_BORDER_PX: u32 = 12;
+/// Rows averaged (each side) when smoothing the keyed backdrop colour.
+const KEY_ROW_SMOOTH: usize = 16;
+/// Luma at or above which a pixel counts as clipped white.
+const CLIP_HIGH_LUMA: u8 = 250;
+/// Luma at or below which a pixel counts as crushed black.
+const CLIP_LOW_LUMA: u8 = 5;
+
+/// A binary mask, full frame resolution, 0 (background) or 255 (person).
+#[derive(Debug, Clone, PartialEq, Eq, Default)]
+pub struct Mask {
+    pub width: u32,
+    pub height: u32,
+    /// Row-major, `width * height` values, 0 or 255.
+    pub data: Vec<u8>,
+}
+
+impl Mask {
+    pub fn new(width: u32, height: u32) -> Self {
+        Mask {
+            width,
+            height,
+            data: vec![0; (width * height) as usize],
+        }
+    }
+    /// True for a foreground pixel; false outside the image.
+    #[inline]
+    pub fn get(&self, x: i64, y: i64) -> bool {
+        if x < 0 || y < 0 || x >= self.width as i64 || y >= self.height as i64 {
+            return false;
+        }
+        self.data[(y as usize) * self.width as usize + x as usize] != 0
+    }
+    /// Foreground pixels.
+    pub fn area(&self) -> u64 {
+        self.data.iter().filter(|&&v| v != 0).count() as u64
+    }
+    /// Intersection over union with another mask of the same size (1 when both empty).
+    pub fn iou(&self, other: &Mask) -> f64 {
+        let (mut i, mut u) = (0u64, 0u64);
+        for (&a, &b) in self.data.iter().zip(&other.data) {
+            let (a, b) = (a != 0, b != 0);
+            i += (a && b) as u64;
+            u += (a || b) as u64;
+        }
+        if u == 0 {
+            1.0
+        } else {
+            i as f64 / u as f64
+        }
+    }
+    fn reset(&mut self, width: u32, height: u32) {
+        self.width = width;
+        self.height = height;
+        self.data.clear();
+        self.data.resize((width * height) as usize, 0);
+    }
+}
+
+/// Tuning of the segmentation. Thresholds are in 8-bit colour units.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SegmentOptions {
+    /// Noise radius: `k * sigma` of the pixel's learned noise (per-channel sigma times
+    /// sqrt(3) for the colour distance), at least `min_distance`.
+    pub noise_k: f32,
+    pub min_distance: f32,
+    /// Chromaticity distortion above which a pixel is foreground, in units of the noise
+    /// radius.
+    pub chroma_k: f32,
+    /// Darker than this fraction of the model brightness is foreground; between this and
+    /// 1 (with low chromaticity distortion) is shadow, kept as background.
+    pub shadow_min_brightness: f32,
+    /// Brighter than this multiple of the model brightness is foreground.
+    pub highlight_max_brightness: f32,
+    /// Running-mean rate of the adaptation (0 disables it).
+    pub adapt_rate: f32,
+    /// Components smaller than this fraction of the frame are ignored (not a person).
+    pub min_person_fraction: f32,
+}
+
+impl Default for SegmentOptions {
+    fn default() -> Self {
+        SegmentOptions {
+            noise_k: 4.0,
+            min_distance: 14.0,
+            chroma_k: 1.0,
+            shadow_min_brightness: 0.45,
+            highlight_max_brightness: 1.25,
+            adapt_rate: 0.05,
+            min_person_fraction: 0.01,
+        }
+    }
+}
+
+/// Errors of the segmentation.
+#[derive(Debug, thiserror::Error)]
+pub enum SegmentError {
+    #[error("frame is {got_w}x{got_h} but the background model is {want_w}x{want_h}")]
+    FrameSize {
+        want_w: u32,
+        want_h: u32,
+        got_w: u32,
+        got_h: u32,
+    },
+    #[error(
+        "the background model has not learned an empty scene yet: show the empty backdrop first"
+    )]
+    NotReady,
+    #[error("empty frame (0 pixels)")]
+    Empty,
+}
+
+/// Which image borders the person touches.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct BorderTouch {
+    pub top: bool,
+    pub bottom: bool,
+    pub left: bool,
+    pub right: bool,
+}
+
+/// A pixel box, min inclusive, max exclusive.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PixelBox {
+    pub min_x: u32,
+    pub min_y: u32,
+    pub max_x: u32,
+    pub max_y: u32,
+}
+
+/// What the segmentation saw in one frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SegmentStats {
+    /// Foreground pixels of the output mask (the person, holes filled).
+    pub person_px: u64,
+    /// Components (coarse grid) above `min_person_fraction` of the frame.
+    pub large_components: u32,
+    /// Area of the largest and second largest component, in full-resolution pixels.
+    pub largest_px: u64,
+    pub second_px: u64,
+    /// Box of the person in full-resolution pixels.
+    pub person_box: Option<PixelBox>,
+    pub touches: BorderTouch,
+    /// Mean luma of the frame (coarse grid), 0..255.
+    pub mean_luma: f32,
+    /// Fractions of (coarse) pixels clipped white / crushed black.
+    pub clipped_high: f32,
+    pub clipped_low: f32,
+    /// Frames segmented so far by this model.
+    pub frame_index: u64,
+    /// Full-resolution pixels re-tested along the border.
+    pub band_px: u32,
+    /// Wall time of the phases.
+    pub phase_ms: SegmentPhases,
+}
+
+/// Milliseconds spent in each phase of [`BackgroundModel::segment`].
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
+pub struct SegmentPhases {
+    pub classify: f32,
+    pub components: f32,
+    pub upsample: f32,
+    pub band: f32,
+    pub stats: f32,
+    pub adapt: f32,
+}
+
+struct PhaseClock(std::time::Instant);
+
+impl PhaseClock {
+    fn start() -> Self {
+        PhaseClock(std::time::Instant::now())
+    }
+    fn lap(&mut self) -> f32 {
+        let now = std::time::Instant::now();
+        let ms = (now - self.0).as_secs_f32() * 1e3;
+        self.0 = now;
+        ms
+    }
+}
+
+/// Per-pixel colour statistics of the empty scene (see the module docs).
+#[derive(Debug, Clone)]
+pub struct BackgroundModel {
+    pub width: u32,
+    pub height: u32,
+    pub opts: SegmentOptions,
+    learned_frames: u32,
+    sum: Vec<[f32; 3]>,
+    sum_sq: Vec<f32>,
+    /// Model of every pixel (one cache line holds about three pixels).
+    px: Vec<PixelModel>,
+    /// The model at the coarse-grid pixels (every second pixel of every second row),
+    /// contiguous for the per-frame test.
+    coarse_model: ModelPlane,
+    /// One coarse row of the frame, per channel.
+    row_rgb: [Vec<u8>; 3],
+    frames: u64,
+    // Scratch.
+    coarse: Vec<u8>,
+    coarse_clean: Vec<u8>,
+    coarse_body: Vec<u8>,
+    tmp: Vec<u8>,
+    eroded: Vec<u8>,
+    dilated: Vec<u8>,
+    runs: RunComponents,
+    hole_runs: RunComponents,
+    band_state: Vec<u8>,
+    band_px: Vec<u32>,
+    band_out: Vec<u8>,
+}
+
+/// Model of one pixel in eight bytes (the band re-test is bound by memory latency):
+/// colour E in 1/256 of a level, and the squared noise radius.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+struct PixelModel {
+    e_q8: [u16; 3],
+    tau2: u16,
+}
+
+/// Fixed-point scale of `PixelModel::e_q8`.
+const COLOR_Q: f32 = 256.0;
+
+impl PixelModel {
+    #[inline(always)]
+    fn color(&self) -> [f32; 3] {
+        self.e_q8.map(|v| v as f32 * (1.0 / COLOR_Q))
+    }
+}
+
+/// The model at the coarse-grid pixels in 8-bit colour and 16-bit squared radius (five
+/// bytes a pixel: the per-frame test is bound by memory traffic).
+#[derive(Debug, Clone, Default)]
+struct ModelPlane {
+    er: Vec<u8>,
+    eg: Vec<u8>,
+    eb: Vec<u8>,
+    tau2: Vec<u16>,
+}
+
+const BAND_NONE: u8 = 0;
+const BAND_BG: u8 = 1;
+const BAND_FG: u8 = 2;
+
+impl BackgroundModel {
+    pub fn new(width: u32, height: u32, opts: SegmentOptions) -> Self {
+        let n = (width * height) as usize;
+        BackgroundModel {
+            width,
+            height,
+            opts,
+            learned_frames: 0,
+            sum: vec![[0.0; 3]; n],
+            sum_sq: vec![0.0; n],
+            px: vec![PixelModel::default(); n],
+            coarse_model: ModelPlane::default(),
+            row_rgb: [Vec::new(), Vec::new(), Vec::new()],
+            frames: 0,
+            coarse: Vec::new(),
+            coarse_clean: Vec::new(),
+            coarse_body: Vec::new(),
+            tmp: Vec::new(),
+            eroded: Vec::new(),
+            dilated: Vec::new(),
+            runs: RunComponents::default(),
+            hole_runs: RunComponents::default(),
+            band_state: vec![BAND_NONE; n],
+            band_px: Vec::new(),
+            band_out: Vec::new(),
+        }
+    }
+
+    fn check(&self, frame: &RgbImage) -> Result<(), SegmentError> {
+        if frame.width() == 0 || frame.height() == 0 {
+            return Err(SegmentError::Empty);
+        }
+        if frame.width() != self.width || frame.height() != self.height {
+            return Err(SegmentError::FrameSize {
+                want_w: self.width,
+                want_h: self.height,
+                got_w: frame.width(),
+                got_h: frame.height(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Adds one empty-scene frame to the model (call it for each of the first frames of a
+    /// recording or session). The model is ready after the first frame; more frames
+    /// measure each pixel's noise instead of assuming it.
+    ///
+    /// # Errors
+    /// `FrameSize` / `Empty` when the frame does not fit the model.
+    pub fn learn(&mut self, empty: &RgbImage) -> Result<(), SegmentError> {
+        self.check(empty)?;
+        for (i, p) in empty.pixels().enumerate() {
+            let [r, g, b] = p.0.map(|v| v as f32);
+            let s = &mut self.sum[i];
+            s[0] += r;
+            s[1] += g;
+            s[2] += b;
+            self.sum_sq[i] += r * r + g * g + b * b;
+        }
+        self.learned_frames += 1;
+        self.finalize();
+        Ok(())
+    }
+
+    /// True once at least one empty frame was learned.
+    pub fn is_ready(&self) -> bool {
+        self.learned_frames > 0
+    }
+
+    /// Empty-scene frames learned.
+    pub fn learned_frames(&self) -> u32 {
+        self.learned_frames
+    }
+
+    fn finalize(&mut self) {
+        let n = self.learned_frames as f32;
+        let o = self.opts;
+        let cn = (self.width as usize).div_ceil(COARSE as usize)
+            * (self.height as usize).div_ceil(COARSE as usize);
+        let c = &mut self.coarse_model;
+        for v in [&mut c.er, &mut c.eg, &mut c.eb] {
+            v.clear();
+            v.resize(cn, 0);
+        }
+        c.tau2.clear();
+        c.tau2.resize(cn, 0);
+        for i in 0..self.sum.len() {
+            let s = self.sum[i];
+            let m = [s[0] / n, s[1] / n, s[2] / n];
+            // Per-channel variance (mean over channels); a single frame gives none.
+            let var = if self.learned_frames > 1 {
+                ((self.sum_sq[i] / n - (m[0] * m[0] + m[1] * m[1] + m[2] * m[2])) / 3.0).max(0.0)
+            } else {
+                DEFAULT_NOISE_SIGMA * DEFAULT_NOISE_SIGMA
+            };
+            let radius = (o.noise_k * (3.0 * var).sqrt()).max(o.min_distance);
+            self.set_model(i, m, radius * radius);
+        }
+    }
+
+    #[inline]
+    fn set_model(&mut self, i: usize, m: [f32; 3], tau2: f32) {
+        let w = self.width as usize;
+        self.set_model_xy(i, i % w, i / w, m, tau2);
+    }
+
+    /// Sets pixel `i` = (x, y) of the model (and its coarse copy when on the coarse grid).
+    /// Values are positive, so `+ 0.5` and truncation round them without a libm call.
+    #[inline]
+    fn set_model_xy(&mut self, i: usize, x: usize, y: usize, m: [f32; 3], tau2: f32) {
+        // Keep |E| away from zero so the ratios stay defined on black backdrops.
+        let m = m.map(|v| v.clamp(1.0, 255.0));
+        let tau2_q = (tau2.clamp(0.0, u16::MAX as f32) + 0.5) as u16;
+        self.px[i] = PixelModel {
+            e_q8: m.map(|v| (v * COLOR_Q + 0.5) as u16),
+            tau2: tau2_q,
+        };
+        if x.is_multiple_of(COARSE as usize) && y.is_multiple_of(COARSE as usize) {
+            let cw = (self.width as usize).div_ceil(COARSE as usize);
+            let k = (y / COARSE as usize) * cw + x / COARSE as usize;
+            let c = &mut self.coarse_model;
+            if k < c.er.len() {
+                c.er[k] = (m[0] + 0.5) as u8;
+                c.eg[k] = (m[1] + 0.5) as u8;
+                c.eb[k] = (m[2] + 0.5) as u8;
+                c.tau2[k] = tau2_q;
+            }
+        }
+    }
+
+    /// The model colour of a pixel.
+    pub fn model_rgb(&self, x: u32, y: u32) -> [f32; 3] {
+        let i = (y * self.width + x) as usize;
+        self.px[i].color()
+    }
+
+    /// Horprasert-style foreground test of pixel index `i` with colour `p`.
+    #[inline(always)]
+    fn is_foreground(&self, i: usize, p: [u8; 3]) -> bool {
+        let m = self.px[i];
+        let [er, eg, eb] = m.color();
+        let ee = er * er + eg * eg + eb * eb;
+        let tau2 = m.tau2 as f32;
+        let dr = p[0] as f32 - er;
+        let dg = p[1] as f32 - eg;
+        let db = p[2] as f32 - eb;
+        let dd = dr * dr + dg * dg + db * db;
+        let de = dr * er + dg * eg + db * eb;
+        let o = &self.opts;
+        let chroma_ee = dd * ee - de * de; // |I - alpha E|^2 |E|^2
+        let ck = o.chroma_k * o.chroma_k;
+        dd > tau2
+            && (chroma_ee > ck * tau2 * ee
+                || de < (o.shadow_min_brightness - 1.0) * ee
+                || de > (o.highlight_max_brightness - 1.0) * ee)
+    }
+
+    /// Colour distance to the model of the pixel nearest (x, y) inside the frame (8-bit
+    /// units): the sub-pixel edge score. 0 when the frame does not fit the model.
+    #[inline]
+    pub fn distance_clamped(&self, frame: &RgbImage, x: i64, y: i64) -> f32 {
+        let (w, h) = (self.width as i64, self.height as i64);
+        let p = frame.as_raw();
+        if w == 0 || h == 0 || p.len() != self.px.len() * 3 {
+            return 0.0;
+        }
+        let i = (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize;
+        let e = self.px[i].color();
+        let dr = p[3 * i] as f32 - e[0];
+        let dg = p[3 * i + 1] as f32 - e[1];
+        let db = p[3 * i + 2] as f32 - e[2];
+        (dr * dr + dg * dg + db * db).sqrt()
+    }
+
+    /// Colour distance of a pixel to the model (8-bit units): the sub-pixel edge score.
+    #[inline]
+    pub fn distance(&self, frame: &RgbImage, x: u32, y: u32) -> f32 {
+        if x >= self.width
+            || y >= self.height
+            || frame.width() != self.width
+            || frame.height() != self.height
+        {
+            return 0.0;
+        }
+        let i = (y * self.width + x) as usize;
+        let p = frame.as_raw();
+        let e = self.px[i].color();
+        let dr = p[3 * i] as f32 - e[0];
+        let dg = p[3 * i + 1] as f32 - e[1];
+        let db = p[3 * i + 2] as f32 - e[2];
+        (dr * dr + dg * dg + db * db).sqrt()
+    }
+
+    /// Segments a frame into `mask_out` (resized to the frame): the largest person-sized
+    /// component, holes filled.
+    ///
+    /// # Errors
+    /// `NotReady` before any empty frame was learned; `FrameSize` / `Empty`.
+    pub fn segment(
+        &mut self,
+        frame: &RgbImage,
+        mask_out: &mut Mask,
+    ) -> Result<SegmentStats, SegmentError> {
+        self.check(frame)?;
+        if !self.is_ready() {
+            return Err(SegmentError::NotReady);
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let (cw, ch) = (w.div_ceil(COARSE as usize), h.div_ceil(COARSE as usize));
+        let raw = frame.as_raw();
+        let mut stats = SegmentStats {
+            frame_index: self.frames,
+            ..Default::default()
+        };
+        let mut clock = PhaseClock::start();
+
+        // 1. Coarse classification and exposure statistics: gather one coarse row into
+        // f32 channels, then a branch-free test the compiler vectorises.
+        self.coarse.clear();
+        self.coarse.resize(cw * ch, 0);
+        for v in &mut self.row_rgb {
+            v.resize(cw, 0);
+        }
+        let (mut luma_sum, mut hi, mut lo) = (0u64, 0u64, 0u64);
+        let o = self.opts;
+        let ck2 = o.chroma_k * o.chroma_k;
+        let (klo, khi) = (
+            o.shadow_min_brightness - 1.0,
+            o.highlight_max_brightness - 1.0,
+        );
+        for cy in 0..ch {
+            let y = cy * COARSE as usize;
+            let row = &raw[3 * y * w..3 * (y + 1) * w];
+            let [rr, rg, rb] = &mut self.row_rgb;
+            for (((r, g), b), p) in rr
+                .iter_mut()
+                .zip(rg.iter_mut())
+                .zip(rb.iter_mut())
+                .zip(row.chunks(3 * COARSE as usize))
+            {
+                if let [pr, pg, pb, ..] = *p {
+                    *r = pr;
+                    *g = pg;
+                    *b = pb;
+                }
+            }
+            // Exposure statistics (integer, vectorised).
+            let (mut sum, mut n_hi, mut n_lo) = (0u32, 0u32, 0u32);
+            for ((&r, &g), &b) in rr.iter().zip(rg.iter()).zip(rb.iter()) {
+                let l = (77 * r as u32 + 150 * g as u32 + 29 * b as u32) >> 8;
+                sum += l;
+                n_hi += (l >= CLIP_HIGH_LUMA as u32) as u32;
+                n_lo += (l <= CLIP_LOW_LUMA as u32) as u32;
+            }
+            luma_sum += sum as u64;
+            hi += n_hi as u64;
+            lo += n_lo as u64;
+            let m = &self.coarse_model;
+            let span = cy * cw..(cy + 1) * cw;
+            let out = &mut self.coarse[span.clone()];
+            let it = out
+                .iter_mut()
+                .zip(rr.iter().zip(rg.iter()).zip(rb.iter()))
+                .zip(
+                    m.er[span.clone()]
+                        .iter()
+                        .zip(&m.eg[span.clone()])
+                        .zip(&m.eb[span.clone()]),
+                )
+                .zip(&m.tau2[span]);
+            for (((o, ((&r, &g), &b)), ((&er, &eg), &eb)), &tau2) in it {
+                // Integer differences and dot products (exact), f32 for the products.
+                let (er, eg, eb) = (er as i32, eg as i32, eb as i32);
+                let (dr, dg, db) = (r as i32 - er, g as i32 - eg, b as i32 - eb);
+                let dd = (dr * dr + dg * dg + db * db) as f32;
+                let de = (dr * er + dg * eg + db * eb) as f32;
+                let ee = (er * er + eg * eg + eb * eb) as f32;
+                let tau2 = tau2 as f32;
+                let chroma_ee = dd * ee - de * de;
+                let fg = (dd > tau2)
+                    & ((chroma_ee > ck2 * tau2 * ee) | (de < klo * ee) | (de > khi * ee));
+                *o = (fg as u8).wrapping_neg();
+            }
+        }
+        let nc = (cw * ch) as f32;
+        stats.mean_luma = luma_sum as f32 / nc;
+        stats.clipped_high = hi as f32 / nc;
+        stats.clipped_low = lo as f32 / nc;
+
+        stats.phase_ms.classify = clock.lap();
+        // 2. Clean-up, components, largest with holes filled.
+        imgproc::majority3x3(&self.coarse, cw, ch, &mut self.coarse_clean, &mut self.tmp);
+        self.runs
+            .compute(&self.coarse_clean, cw as u32, ch as u32, true, true);
+        let cell = (COARSE * COARSE) as u64;
+        let min_area = (self.opts.min_person_fraction * nc) as u64;
+        stats.large_components = self
+            .runs
+            .components
+            .iter()
+            .filter(|c| c.area >= min_area.max(1))
+            .count() as u32;
+        let (first, second) = self.runs.two_largest();
+        stats.second_px = second.map_or(0, |c| self.runs.components[c].area * cell);
+        mask_out.reset(self.width, self.height);
+        let body = match first {
+            Some(c) if self.runs.components[c].area >= min_area.max(1) => c,
+            _ => {
+                self.frames += 1;
+                self.adapt(frame, None);
+                return Ok(stats);
+            }
+        };
+        stats.largest_px = self.runs.components[body].area * cell;
+        self.runs
+            .write_filled(body, &mut self.coarse_body, &mut self.hole_runs);
+
+        stats.phase_ms.components = clock.lap();
+        // 3. Upsample, then re-test the band along the border at full resolution.
+        // (mask_out is all zero here: fill the coarse runs, then copy the row down.)
+        let mut upsampled_px = 0u64;
+        let c2 = COARSE as usize;
+        for cy in 0..ch {
+            let crow = &self.coarse_body[cy * cw..(cy + 1) * cw];
+            let y = cy * c2;
+            let (first, rest) = mask_out.data[y * w..].split_at_mut(w);
+            let mut x = 0;
+            let mut any = false;
+            while x < cw {
+                let Some(a) = crow[x..].iter().position(|&v| v != 0) else {
+                    break;
+                };
+                let x0 = x + a;
+                let len = crow[x0..].iter().position(|&v| v == 0).unwrap_or(cw - x0);
+                x = x0 + len;
+                let span = &mut first[x0 * c2..(x * c2).min(w)];
+                span.fill(MASK_ON);
+                upsampled_px += (span.len() * c2.min(h - y)) as u64;
+                any = true;
+            }
+            if any {
+                for dy in 1..c2 {
+                    if y + dy < h {
+                        rest[(dy - 1) * w..dy * w].copy_from_slice(first);
+                    }
+                }
+            }
+        }
+        stats.phase_ms.upsample = clock.lap();
+        imgproc::erode3x3(&self.coarse_body, cw, ch, &mut self.eroded, &mut self.tmp);
+        imgproc::dilate3x3(&self.coarse_body, cw, ch, &mut self.dilated, &mut self.tmp);
+        self.band_px.clear();
+        const SKIP_CHUNK: usize = 16;
+        for cy in 0..ch {
+            let (er_row, di_row) = (
+                &self.eroded[cy * cw..(cy + 1) * cw],
+                &self.dilated[cy * cw..(cy + 1) * cw],
+            );
+            if er_row == di_row {
+                continue;
+            }
+            let mut cx = 0;
+            while cx < cw {
+                if cx % SKIP_CHUNK == 0 {
+                    let end = (cx + SKIP_CHUNK).min(cw);
+                    if er_row[cx..end] == di_row[cx..end] {
+                        cx = end;
+                        continue;
+                    }
+                }
+                if er_row[cx] != di_row[cx] {
+                    for dy in 0..COARSE as usize {
+                        for dx in 0..COARSE as usize {
+                            let (x, y) = (cx * COARSE as usize + dx, cy * COARSE as usize + dy);
+                            if x < w && y < h {
+                                let i = y * w + x;
+                                let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                                self.band_state[i] = if self.is_foreground(i, p) {
+                                    BAND_FG
+                                } else {
+                                    BAND_BG
+                                };
+                                self.band_px.push(i as u32);
+                            }
+                        }
+                    }
+                }
+                cx += 1;
+            }
+        }
+        // 3x3 majority over band pixels (outside the band: the upsampled label).
+        self.band_out.clear();
+        for &i in &self.band_px {
+            let (x, y) = ((i as usize % w) as i64, (i as usize / w) as i64);
+            let mut votes = 0;
+            for ny in y - 1..=y + 1 {
+                for nx in x - 1..=x + 1 {
+                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
+                        continue;
+                    }
+                    let j = ny as usize * w + nx as usize;
+                    votes += match self.band_state[j] {
+                        BAND_FG => 1,
+                        BAND_BG => 0,
+                        _ => (mask_out.data[j] != 0) as i32,
+                    };
+                }
+            }
+            self.band_out.push(if votes >= 5 { MASK_ON } else { 0 });
+        }
+        stats.band_px = self.band_px.len() as u32;
+        for (&i, &v) in self.band_px.iter().zip(&self.band_out) {
+            let old = &mut mask_out.data[i as usize];
+            upsampled_px = upsampled_px + (v != 0) as u64 - (*old != 0) as u64;
+            *old = v;
+            self.band_state[i as usize] = BAND_NONE;
+        }
+
+        stats.phase_ms.band = clock.lap();
+        // 4. Statistics of the final mask (box from the coarse component, +-1 cell).
+        let c = self.runs.components[body];
+        let pb = PixelBox {
+            min_x: (c.min_x.saturating_sub(1)) * COARSE,
+            min_y: (c.min_y.saturating_sub(1)) * COARSE,
+            max_x: ((c.max_x + 1) * COARSE).min(self.width),
+            max_y: ((c.max_y + 1) * COARSE).min(self.height),
+        };
+        stats.person_box = Some(pb);
+        stats.person_px = upsampled_px;
+        stats.touches = BorderTouch {
+            top: mask_out.data[..w].iter().any(|&v| v != 0),
+            bottom: mask_out.data[(h - 1) * w..].iter().any(|&v| v != 0),
+            left: (0..h).any(|y| mask_out.data[y * w] != 0),
+            right: (0..h).any(|y| mask_out.data[y * w + w - 1] != 0),
+        };
+        self.frames += 1;
+        stats.phase_ms.stats = clock.lap();
+        self.adapt(frame, Some(pb));
+        stats.phase_ms.adapt = clock.lap();
+        Ok(stats)
+    }
+
+    /// Running-mean update of a rotating band of rows, outside the person's box.
+    fn adapt(&mut self, frame: &RgbImage, person: Option<PixelBox>) {
+        let rate = self.opts.adapt_rate;
+        if rate <= 0.0 {
+            return;
+        }
+        let w = self.width as usize;
+        let raw = frame.as_raw();
+        let phase = self.frames % ADAPT_ROW_STRIDE;
+        let keep_out = person.map(|b| {
+            (
+                b.min_x.saturating_sub(ADAPT_MARGIN_PX) as usize,
+                b.min_y.saturating_sub(ADAPT_MARGIN_PX) as usize,
+                (b.max_x + ADAPT_MARGIN_PX) as usize,
+                (b.max_y + ADAPT_MARGIN_PX) as usize,
+            )
+        });
+        let mut y = phase as usize;
+        while y < self.height as usize {
+            for x in 0..w {
+                if let Some((x0, y0, x1, y1)) = keep_out {
+                    if x >= x0 && x < x1 && y >= y0 && y < y1 {
+                        continue;
+                    }
+                }
+                let i = y * w + x;
+                let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                if self.is_foreground(i, p) {
+                    continue; // someone else, or a change too large to learn silently
+                }
+                let e = self.px[i].color();
+                let m = [
+                    e[0] + rate * (p[0] as f32 - e[0]),
+                    e[1] + rate * (p[1] as f32 - e[1]),
+                    e[2] + rate * (p[2] as f32 - e[2]),
+                ];
+                let t = self.px[i].tau2 as f32;
+                self.set_model_xy(i, x, y, m, t);
+            }
+            y += ADAPT_ROW_STRIDE as usize;
+        }
+    }
+}
+
+/// Segments a still image (the paper's case: one image per view against a plain
+/// backdrop). With `empty`, the empty-scene image of the same view is the background;
+/// without, the backdrop colour is keyed from the left and right image borders (per row,
+/// interpolated across, smoothed over rows), which tolerates a vertical light gradient.
+///
+/// # Errors
+/// `FrameSize` when `empty` differs in size from `frame`; `Empty` for a 0-pixel frame.
+pub fn key_still(frame: &RgbImage, empty: Option<&RgbImage>) -> Result<Mask, SegmentError> {
+    let (w, h) = frame.dimensions();
+    if w == 0 || h == 0 {
+        return Err(SegmentError::Empty);
+    }
+    let opts = SegmentOptions {
+        adapt_rate: 0.0,
+        ..Default::default()
+    };
+    let mut model = BackgroundModel::new(w, h, opts);
+    match empty {
+        Some(e) => model.learn(e)?,
+        None => {
+            let backdrop = backdrop_from_border(frame);
+            model.learn(&backdrop)?;
+        }
+    }
+    let mut mask = Mask::new(w, h);
+    model.segment(frame, &mut mask)?;
+    Ok(mask)
+}
+
+/// An image of the backdrop alone, estimated from the left and right border strips of a
+/// still image (per row, interpolated across, smoothed over rows).
+pub fn backdrop_from_border(frame: &RgbImage) -> RgbImage {
+    let (w, h) = frame.dimensions();
+    let strip = KEY_BORDER_PX.min(w / 4).max(1);
+    let mut left = vec![[0f32; 3]; h as usize];
+    let mut right = vec![[0f32; 3]; h as usize];
+    for y in 0..h {
+        for x in 0..strip {
+            let pl = frame.get_pixel(x, y).0;
+            let pr = frame.get_pixel(w - 1 - x, y).0;
+            for c in 0..3 {
+                left[y as usize][c] += pl[c] as f32 / strip as f32;
+                right[y as usize][c] += pr[c] as f32 / strip as f32;
+            }
+        }
+    }
+    let smooth = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
+        (0..v.len())
+            .map(|y| {
+                let (a, b) = (
+                    y.saturating_sub(KEY_ROW_SMOOTH),
+                    (y + KEY_ROW_SMOOTH + 1).min(v.len()),
+                );
+                let mut s = [0f32; 3];
+                for row in &v[a..b] {
+                    for c in 0..3 {
+                        s[c] += row[c] / (b - a) as f32;
+                    }
+                }
+                s
+            })
+            .collect()
+    };
+    let (left, right) = (smooth(&left), smooth(&right));
+    let mut out = RgbImage::new(w, h);
+    for (x, y, p) in out.enumerate_pixels_mut() {
+        let t = if w > 1 {
+            x as f32 / (w - 1) as f32
+        } else {
+            0.0
+        };
+        let (l, r) = (left[y as usize], right[y as usize]);
+        p.0 = [0, 1, 2].map(|c| (l[c] + t * (r[c] - l[c])).round().clamp(0.0, 255.0) as u8);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn scene(w: u32, h: u32, person: bool, shadow: bool, seed: u32) -> RgbImage {
+        let mut img = RgbImage::new(w, h);
+        let mut s = seed.wrapping_mul(2654435761).wrapping_add(1);
+        for (x, y, p) in img.enumerate_pixels_mut() {
+            s ^= s << 13;
+            s ^= s >> 17;
+            s ^= s << 5;
+            let n = (s % 7) as i32 - 3;
+            let base = 150 + ((x / 8 + y / 8) % 2) as i32 * 20;
+            let mut c = [base + n, base + 5 + n, base - 10 + n];
+            if shadow && y > 80 && (30..90).contains(&x) {
+                c = c.map(|v| v * 6 / 10);
+            }
+            if person && (40..70).contains(&x) && (20..90).contains(&y) {
+                c = [200 + n, 120 + n, 90 + n];
+            }
+            p.0 = c.map(|v| v.clamp(0, 255) as u8);
+        }
+        img
+    }
+
+    #[test]
+    fn person_is_found_and_shadow_is_not() {
+        let (w, h) = (120, 100);
+        let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+        for k in 0..5 {
+            m.learn(&scene(w, h, false, false, k)).unwrap();
+        }
+        let mut mask = Mask::new(1, 1);
+        let st = m.segment(&scene(w, h, true, true, 99), &mut mask).unwrap();
+        let mut truth = Mask::new(w, h);
+        for y in 20..90 {
+            for x in 40..70 {
+                truth.data[(y * w + x) as usize] = 255;
+            }
+        }
+        let iou = mask.iou(&truth);
+        assert!(iou > 0.97, "iou {iou}");
+        assert_eq!(st.large_components, 1);
+        assert_eq!(st.person_px, mask.area());
+        assert!(!st.touches.bottom);
+    }
+
+    fn scaled(img: &RgbImage, gain: f32) -> RgbImage {
+        let mut out = img.clone();
+        for p in out.pixels_mut() {
+            p.0 =
+                p.0.map(|v| (v as f32 * gain).round().clamp(0.0, 255.0) as u8);
+        }
+        out
+    }
+
+    #[test]
+    fn the_model_follows_a_slow_light_drift_where_nobody_is() {
+        let (w, h) = (120, 100);
+        let opts = SegmentOptions {
+            adapt_rate: 1.0,
+            ..Default::default()
+        };
+        let mut adaptive = BackgroundModel::new(w, h, opts);
+        let mut fixed = BackgroundModel::new(
+            w,
+            h,
+            SegmentOptions {
+                adapt_rate: 0.0,
+                ..opts
+            },
+        );
+        let empty = scene(w, h, false, false, 3);
+        adaptive.learn(&empty).unwrap();
+        fixed.learn(&empty).unwrap();
+        let mut mask = Mask::new(1, 1);
+        // Light rising in steps each within the brightness tolerance, a full sweep of
+        // the adaptation's rows per step.
+        for gain in [1.15f32, 1.32, 1.5] {
+            for _ in 0..ADAPT_ROW_STRIDE {
+                adaptive.segment(&scaled(&empty, gain), &mut mask).unwrap();
+            }
+        }
+        let bright = scaled(&scene(w, h, true, false, 4), 1.5);
+        let st = adaptive.segment(&bright, &mut mask).unwrap();
+        let box_ = st.person_box.unwrap();
+        assert!(
+            box_.min_x >= 36 && box_.max_x <= 74 && box_.min_y >= 16 && box_.max_y <= 94,
+            "{box_:?}"
+        );
+        // Without adaptation the whole brighter frame is foreground.
+        let st = fixed.segment(&bright, &mut mask).unwrap();
+        assert!(st.person_px > (w * h) as u64 / 2, "{}", st.person_px);
+    }
+
+    #[test]
+    fn empty_scene_gives_no_person() {
+        let (w, h) = (120, 100);
+        let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+        m.learn(&scene(w, h, false, false, 1)).unwrap();
+        let mut mask = Mask::new(1, 1);
+        let st = m.segment(&scene(w, h, false, true, 2), &mut mask).unwrap();
+        assert_eq!(st.person_px, 0);
+        assert!(matches!(
+            BackgroundModel::new(w, h, SegmentOptions::default())
+                .segment(&scene(w, h, false, false, 1), &mut mask),
+            Err(SegmentError::NotReady)
+        ));
+    }
+}

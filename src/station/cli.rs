@@ -1,0 +1,543 @@
+//! `fitstation replay` and `fitstation fit`: run the station on a recording or on a pair
+//! of stills and write `avatar.obj` + `report.json` (`../shared/spec/formats.md`).
+
+use super::output::write_fit_outputs;
+use super::{StationOptions, StationProcessor, MEASUREMENT_KEYS};
+use crate::body::ShapeLibrary;
+use crate::camera::StationCalibration;
+use crate::deform::DecoderKind;
+use crate::fit::correspond::Variant;
+use crate::pipeline::timing::TimingStats;
+use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, FrameSource, Phase, SourceError};
+use crate::recording::Recording;
+use anyhow::{bail, Context};
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+/// Options shared by `replay` and `fit`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FitCliOptions {
+    /// Stature typed by the operator, millimetres (otherwise measured from the views).
+    #[arg(long)]
+    pub stature_mm: Option<f64>,
+    /// Correspondence: the paper's slice extremes or perspective rims.
+    #[arg(long, value_enum, default_value = "perspective-rim")]
+    pub correspondence: Variant,
+    /// Mean value decoder.
+    #[arg(long, value_enum, default_value = "fast")]
+    pub decoder: DecoderChoice,
+    /// Print the report as JSON instead of a table.
+    #[arg(long)]
+    pub json: bool,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum DecoderChoice {
+    /// Sparse Cholesky Gauss-Newton.
+    Fast,
+    /// The paper's iteration (slow; for comparison).
+    Paper,
+}
+
+impl FitCliOptions {
+    fn station_options(&self) -> anyhow::Result<StationOptions> {
+        let mut o = StationOptions::default();
+        if let Some(mm) = self.stature_mm {
+            if !(500.0..=2600.0).contains(&mm) {
+                bail!("--stature-mm {mm} is not a plausible stature (500 to 2600 mm)");
+            }
+            o.stature_m = Some(mm / 1000.0);
+        }
+        o.fit.variant = self.correspondence;
+        o.fit.decoder = match self.decoder {
+            DecoderChoice::Fast => DecoderKind::FastGaussNewton,
+            DecoderChoice::Paper => DecoderKind::PaperIterative,
+        };
+        Ok(o)
+    }
+}
+
+/// `fitstation replay REC --out DIR`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ReplayArgs {
+    /// Recording folder (station.yaml + front/ side/ frames or front.mp4 side.mp4).
+    pub recording: PathBuf,
+    /// Where avatar.obj and report.json go.
+    #[arg(long)]
+    pub out: Option<PathBuf>,
+    /// Stop after this many frame pairs.
+    #[arg(long)]
+    pub max_frames: Option<usize>,
+    /// Show the station screen (views, avatar, measurements) while replaying.
+    #[arg(long)]
+    pub ui: bool,
+    /// With --ui: save a screenshot of the window after --exit-after-frames frames.
+    #[arg(long, requires = "ui")]
+    pub screenshot: Option<PathBuf>,
+    /// With --ui: close the window after this many screen frames.
+    #[arg(long, requires = "ui")]
+    pub exit_after_frames: Option<u64>,
+    /// With --ui: start with the operator tools open.
+    #[arg(long, requires = "ui")]
+    pub operator: bool,
+    #[command(flatten)]
+    pub fit: FitCliOptions,
+}
+
+/// Frame pairs from a recording, in order; unreadable frames are skipped and said.
+pub struct RecordingSource {
+    rec: Recording,
+    next: usize,
+    /// Pairs given so far (indices and timestamps keep rising when looping).
+    given: u64,
+    /// Start again at the first frame after the last (the station screen's replay).
+    pub looping: bool,
+    name: String,
+}
+
+impl RecordingSource {
+    pub fn open(dir: &Path) -> anyhow::Result<Self> {
+        let rec = Recording::open(dir)
+            .with_context(|| format!("cannot open recording {}", dir.display()))?;
+        Ok(RecordingSource {
+            rec,
+            next: 0,
+            given: 0,
+            looping: false,
+            name: format!("recording {}", dir.display()),
+        })
+    }
+    pub fn recording(&self) -> &Recording {
+        &self.rec
+    }
+}
+
+impl FrameSource for RecordingSource {
+    fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
+        if self.next >= self.rec.len() {
+            if !self.looping || self.rec.is_empty() {
+                return Ok(None);
+            }
+            self.next = 0;
+        }
+        let k = self.next;
+        self.next += 1;
+        let index = self.given;
+        self.given += 1;
+        let fps = self.rec.metadata().fps.max(1e-3);
+        match self.rec.frame_pair(k) {
+            Ok((front, side)) => Ok(Some(FramePair {
+                index,
+                timestamp_s: index as f64 / fps,
+                front,
+                side,
+            })),
+            Err(e) => Err(SourceError::Skipped(format!("frame {k}: {e}"))),
+        }
+    }
+    fn calibration(&self) -> Option<&StationCalibration> {
+        Some(self.rec.calibration())
+    }
+    fn fps(&self) -> Option<f64> {
+        Some(self.rec.metadata().fps)
+    }
+    fn describe(&self) -> String {
+        self.name.clone()
+    }
+}
+
+/// The outcome of running the station over a source.
+pub struct RunSummary {
+    pub report: serde_json::Value,
+    pub avatar: Option<crate::mesh::TriMesh>,
+    pub last: Option<FitSnapshot>,
+}
+
+/// Runs a processor over every frame of a source (no frame dropped: offline replay).
+pub fn run_offline(
+    source: &mut dyn FrameSource,
+    proc_: &mut StationProcessor,
+    max_frames: Option<usize>,
+    progress: bool,
+) -> RunSummary {
+    let mut timings = TimingStats::default();
+    let mut messages: Vec<String> = Vec::new();
+    let mut series = Vec::new();
+    let mut last = None;
+    let mut n = 0usize;
+    loop {
+        if max_frames.is_some_and(|m| n >= m) {
+            break;
+        }
+        let pair = match source.next_pair() {
+            Ok(Some(p)) => p,
+            Ok(None) => break,
+            Err(SourceError::Fatal(e)) => {
+                messages.push(e);
+                break;
+            }
+            Err(e) => {
+                messages.push(e.to_string());
+                proc_.counts.total += 1;
+                n += 1;
+                continue;
+            }
+        };
+        n += 1;
+        let snap = proc_.process(&pair);
+        if progress {
+            eprint!(
+                "\rframe {:>4}  {:<20}",
+                pair.index,
+                format!("{:?}", snap.phase)
+            );
+        }
+        if snap.phase != Phase::LearningBackdrop {
+            timings.add_all(&snap.timings_ms);
+        }
+        for m in &snap.messages {
+            if !m.starts_with("Learning") && !messages.contains(m) {
+                messages.push(m.clone());
+            }
+        }
+        if matches!(snap.phase, Phase::Fitting | Phase::Settled) {
+            let mut row = serde_json::Map::new();
+            row.insert("frame".into(), pair.index.into());
+            for mv in &snap.measurements {
+                row.insert(mv.name.clone(), round1(mv.value_mm).into());
+            }
+            series.push(serde_json::Value::Object(row));
+        }
+        last = Some(snap);
+    }
+    if progress {
+        eprintln!();
+    }
+    let mut meas = serde_json::Map::new();
+    let mut stab = serde_json::Map::new();
+    for mv in proc_.measurements() {
+        meas.insert(mv.name.clone(), round1(mv.value_mm).into());
+        if mv.stability_mm.is_finite() {
+            stab.insert(mv.name.clone(), round1(mv.stability_mm).into());
+        }
+    }
+    let steps: serde_json::Map<String, serde_json::Value> = proc_
+        .max_steps()
+        .into_iter()
+        .map(|(k, v)| (k, round1(v).into()))
+        .collect();
+    let landmarks: serde_json::Map<String, serde_json::Value> = proc_
+        .last_landmarks
+        .iter()
+        .map(|(k, p)| {
+            (
+                k.clone(),
+                serde_json::json!({"x": round4(p.x), "y": round4(p.y), "z": round4(p.z)}),
+            )
+        })
+        .collect();
+    let report = serde_json::json!({
+        "measurements_mm": meas,
+        "frames": proc_.counts,
+        "timings_ms": timings.to_json(),
+        "stability_mm": stab,
+        "max_frame_step_mm": steps,
+        "landmarks": landmarks,
+        "fit": proc_.last_fit,
+        "messages": messages,
+        "series": series,
+    });
+    RunSummary {
+        report,
+        avatar: proc_.avatar().map(|a| (*a).clone()),
+        last,
+    }
+}
+
+fn round1(v: f64) -> f64 {
+    (v * 10.0).round() / 10.0
+}
+fn round4(v: f64) -> f64 {
+    (v * 1e4).round() / 1e4
+}
+
+/// Loads the default shape library (embedded in the binary).
+pub fn default_library() -> anyhow::Result<Arc<ShapeLibrary>> {
+    Ok(Arc::new(
+        ShapeLibrary::load_default().context("cannot load the shape library")?,
+    ))
+}
+
+/// `fitstation replay`.
+pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
+    let mut source = RecordingSource::open(&args.recording)?;
+    for w in source.recording().warnings() {
+        eprintln!("warning: {w}");
+    }
+    let calib = source.recording().calibration().clone();
+    let mut opts = args.fit.station_options()?;
+    if opts.stature_m.is_none() {
+        opts.stature_m = source.recording().metadata().stature_m;
+    }
+    let backdrop_frames = opts.backdrop_frames;
+    let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
+    if args.ui {
+        // On screen the recording plays in a loop at its own frame rate; frames the
+        // station cannot keep up with are dropped, as with live cameras.
+        // The backdrop is learned from the recording's first (empty) frames before the
+        // screen starts: on screen, frames the station cannot keep up with are dropped,
+        // and a learning phase that skipped into the subject frames would learn the
+        // subject as backdrop.
+        for _ in 0..backdrop_frames {
+            match source.next_pair() {
+                Ok(Some(pair)) => {
+                    proc_.process(&pair);
+                }
+                Ok(None) => break,
+                Err(e) => eprintln!("warning: {e}"),
+            }
+        }
+        source.looping = true;
+        let app_opts = crate::app::AppOptions {
+            title: format!("fitstation: replay {}", args.recording.display()),
+            screenshot: args.screenshot.clone(),
+            exit_after_frames: args.exit_after_frames,
+            operator: args.operator,
+            ..crate::app::AppOptions::default()
+        };
+        let summary = crate::app::run(Box::new(source), Box::new(proc_), app_opts)?;
+        eprintln!("{summary:?}");
+        return Ok(());
+    }
+    let summary = run_offline(&mut source, &mut proc_, args.max_frames, !args.fit.json);
+    finish(summary, args.out.as_deref(), args.fit.json)
+}
+
+fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result<()> {
+    let Some(avatar) = summary.avatar else {
+        let msgs = summary.report["messages"]
+            .as_array()
+            .map(|a| {
+                a.iter()
+                    .filter_map(|m| m.as_str())
+                    .collect::<Vec<_>>()
+                    .join("; ")
+            })
+            .unwrap_or_default();
+        bail!(
+            "no frame could be fitted ({} frames, {} with a subject): {msgs}",
+            summary.report["frames"]["total"],
+            summary.report["frames"]["with_subject"]
+        );
+    };
+    if let Some(out) = out {
+        write_fit_outputs(out, &avatar, &summary.report)?;
+    }
+    if json {
+        println!("{}", serde_json::to_string_pretty(&summary.report)?);
+    } else {
+        print_table(&summary.report);
+        if let Some(out) = out {
+            println!(
+                "wrote {}/avatar.obj and {}/report.json",
+                out.display(),
+                out.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+fn print_table(report: &serde_json::Value) {
+    println!("{:<20} {:>10} {:>12}", "measurement", "mm", "stability");
+    for k in MEASUREMENT_KEYS {
+        let v = report["measurements_mm"][k].as_f64();
+        let s = report["stability_mm"][k].as_f64();
+        match v {
+            Some(v) => println!(
+                "{:<20} {:>10.1} {:>12}",
+                k,
+                v,
+                s.map(|s| format!("±{s:.1}")).unwrap_or_else(|| "-".into())
+            ),
+            None => println!("{k:<20} {:>10}", "-"),
+        }
+    }
+    let f = &report["frames"];
+    println!(
+        "frames: {} total, {} with subject, {} fitted",
+        f["total"], f["with_subject"], f["fitted"]
+    );
+    if let Some(t) = report["timings_ms"].as_object() {
+        let parts: Vec<String> = t
+            .iter()
+            .map(|(k, v)| format!("{k} {:.2}", v["median"].as_f64().unwrap_or(0.0)))
+            .collect();
+        println!("median ms per frame pair: {}", parts.join(", "));
+    }
+}
+
+/// `fitstation fit --front F --side S --calib station.yaml --out DIR`.
+#[derive(Debug, Clone, clap::Args)]
+pub struct FitArgs {
+    #[arg(long)]
+    pub front: PathBuf,
+    #[arg(long)]
+    pub side: PathBuf,
+    #[arg(long)]
+    pub calib: PathBuf,
+    /// Empty-scene image of the front camera.
+    #[arg(long)]
+    pub front_bg: Option<PathBuf>,
+    /// Empty-scene image of the side camera.
+    #[arg(long)]
+    pub side_bg: Option<PathBuf>,
+    #[arg(long)]
+    pub out: PathBuf,
+    #[command(flatten)]
+    pub fit: FitCliOptions,
+}
+
+use crate::landmarks::cli::load_rgb;
+
+/// `fitstation fit` on two stills (with optional empty-scene images).
+pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
+    let calib = StationCalibration::load(&args.calib)
+        .with_context(|| format!("cannot read calibration {}", args.calib.display()))?;
+    let front = load_rgb(&args.front)?;
+    let side = load_rgb(&args.side)?;
+    calib.check_frame_size(crate::camera::View::Front, front.width(), front.height())?;
+    calib.check_frame_size(crate::camera::View::Side, side.width(), side.height())?;
+    let mut opts = args.fit.station_options()?;
+    let pairs: Vec<FramePair> = match (&args.front_bg, &args.side_bg) {
+        (Some(fb), Some(sb)) => {
+            opts.backdrop_frames = 1;
+            vec![
+                FramePair {
+                    index: 0,
+                    timestamp_s: 0.0,
+                    front: load_rgb(fb)?,
+                    side: load_rgb(sb)?,
+                },
+                FramePair {
+                    index: 1,
+                    timestamp_s: 0.0,
+                    front,
+                    side,
+                },
+            ]
+        }
+        (None, None) => {
+            // The paper's case: a plain backdrop, keyed out from the frame's own border.
+            opts.backdrop_frames = 1;
+            opts.silhouette.segment.adapt_rate = 0.0;
+            let (fb, sb) = (
+                crate::segment::backdrop_from_border(&front),
+                crate::segment::backdrop_from_border(&side),
+            );
+            vec![
+                FramePair {
+                    index: 0,
+                    timestamp_s: 0.0,
+                    front: fb,
+                    side: sb,
+                },
+                FramePair {
+                    index: 1,
+                    timestamp_s: 0.0,
+                    front,
+                    side,
+                },
+            ]
+        }
+        _ => bail!("give both --front-bg and --side-bg, or neither"),
+    };
+    let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
+    let mut source = VecSource {
+        pairs: pairs.into_iter(),
+    };
+    let summary = run_offline(&mut source, &mut proc_, None, false);
+    finish(summary, Some(&args.out), args.fit.json)
+}
+
+struct VecSource {
+    pairs: std::vec::IntoIter<FramePair>,
+}
+
+impl FrameSource for VecSource {
+    fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
+        Ok(self.pairs.next())
+    }
+    fn calibration(&self) -> Option<&StationCalibration> {
+        None
+    }
+    fn describe(&self) -> String {
+        "stills".into()
+    }
+}
+
+/// `fitstation eval`: replays each recording through the station (or scores given
+/// results) and compares with the ground truth.
+#[derive(Debug, Clone, clap::Args)]
+pub struct EvalCmd {
+    #[command(flatten)]
+    pub eval: crate::eval::EvalArgs,
+    /// Score "no fitting at all" instead: the average library body scaled to the true
+    /// stature (the baseline the fit must beat).
+    #[arg(long, conflicts_with = "result")]
+    pub baseline: bool,
+    /// Correspondence of the fit: the paper's slice extremes or perspective rims.
+    #[arg(long, value_enum, default_value = "perspective-rim")]
+    pub correspondence: Variant,
+}
+
+/// Runs `fitstation eval`.
+pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
+    if cmd.eval.result.is_some() {
+        return crate::eval::run(cmd.eval.clone());
+    }
+    let library = default_library()?;
+    if cmd.baseline {
+        let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
+            let truth = crate::synth::load_truth(&crate::synth::truth_dir(rec))?;
+            let stature = truth
+                .measurements_mm
+                .get("stature")
+                .copied()
+                .context("truth has no stature")?
+                / 1000.0;
+            let mut avatar = library.template().mesh.clone();
+            let h = avatar.bounds().map(|b| b.size().y).unwrap_or(1.0).max(1e-6);
+            avatar.map_positions(|p| p * (stature / h));
+            let m = crate::measure::measure(&avatar)?;
+            let report = serde_json::json!({ "measurements_mm": m.to_report_map() });
+            Ok(crate::eval::FitResult {
+                avatar,
+                report_json: report,
+                masks_dir: None,
+            })
+        };
+        return crate::eval::run_with(&cmd.eval, &mut source);
+    }
+    let mut opts = StationOptions::default();
+    opts.fit.variant = cmd.correspondence;
+    let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
+        let mut src = RecordingSource::open(rec)?;
+        let calib = src.recording().calibration().clone();
+        let mut o = opts.clone();
+        if o.stature_m.is_none() {
+            o.stature_m = src.recording().metadata().stature_m;
+        }
+        let mut proc_ = StationProcessor::new(calib, library.clone(), o)?;
+        let summary = run_offline(&mut src, &mut proc_, None, false);
+        let avatar = summary
+            .avatar
+            .with_context(|| format!("no frame could be fitted: {}", summary.report["messages"]))?;
+        Ok(crate::eval::FitResult {
+            avatar,
+            report_json: summary.report,
+            masks_dir: None,
+        })
+    };
+    crate::eval::run_with(&cmd.eval, &mut source)
+}

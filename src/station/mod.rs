@@ -1,0 +1,477 @@
+//! The station: wires silhouettes, the fit and measurements into the pipeline's
+//! [`FrameProcessor`], and runs `fitstation replay` and `fitstation fit`.
+//!
+//! Per frame pair: learn the backdrop (first frames of a session), segment both views,
+//! find contours, landmarks and verdicts, fit or refit the avatar, measure it, smooth the
+//! measurements over frames. A frame with a bad verdict is skipped and said (the last fit
+//! is kept); nothing already fitted is lost.
+//!
+//! Units: metres in the station frame, millimetres for measurements, pixels for overlays.
+
+pub mod cli;
+pub mod output;
+
+use crate::body::ShapeLibrary;
+use crate::camera::StationCalibration;
+use crate::fit::correspond::MaskRef;
+use crate::fit::{FitOptions, FitStats, Fitter, Observation};
+use crate::landmarks::{
+    LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict, ViewAnalysis,
+};
+use crate::measure::Measurements;
+use crate::mesh::TriMesh;
+use crate::pipeline::smooth::SmoothedValue;
+use crate::pipeline::timing::FrameTimer;
+use crate::pipeline::{
+    FitSnapshot, FramePair, FrameProcessor, MeasurementValue, Phase, ViewOverlay,
+};
+use glam::{DVec2, DVec3};
+use std::sync::Arc;
+
+/// Measurement report keys in display order (`report.json` `measurements_mm`).
+pub const MEASUREMENT_KEYS: [&str; 6] = [
+    "stature",
+    "chest_girth",
+    "waist_girth",
+    "hip_girth",
+    "thigh_girth_left",
+    "thigh_girth_right",
+];
+
+/// Options of the station processor.
+#[derive(Debug, Clone)]
+pub struct StationOptions {
+    /// Frames of empty scene learned as the backdrop at the start of a session.
+    pub backdrop_frames: usize,
+    /// Operator-entered stature (metres); otherwise it comes from the silhouettes.
+    pub stature_m: Option<f64>,
+    pub fit: FitOptions,
+    pub silhouette: SilhouetteOptions,
+    /// Stability (mm, spread of the recent window) under which a girth counts as settled.
+    pub settled_mm: f64,
+}
+
+impl Default for StationOptions {
+    fn default() -> Self {
+        StationOptions {
+            backdrop_frames: 10,
+            stature_m: None,
+            fit: FitOptions::default(),
+            silhouette: SilhouetteOptions::default(),
+            settled_mm: 2.0,
+        }
+    }
+}
+
+/// Counters over a run, for `report.json` `frames`.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, serde::Serialize)]
+pub struct FrameCounts {
+    pub total: usize,
+    pub with_subject: usize,
+    pub fitted: usize,
+}
+
+/// The station's frame processor.
+pub struct StationProcessor {
+    calib: StationCalibration,
+    opts: StationOptions,
+    silhouettes: SilhouetteExecutor,
+    fitter: Fitter,
+    learned: usize,
+    smoothed: Vec<SmoothedValue>,
+    pub counts: FrameCounts,
+    last_avatar: Option<Arc<TriMesh>>,
+    pub last_measurements: Option<Measurements>,
+    pub last_fit: Option<FitStats>,
+    pub last_landmarks: Vec<(String, DVec3)>,
+    /// Reused silhouette buffers (masks, contours) of the per-frame path.
+    silhouette_result: SilhouetteResult,
+}
+
+impl StationProcessor {
+    pub fn new(
+        calib: StationCalibration,
+        library: Arc<ShapeLibrary>,
+        opts: StationOptions,
+    ) -> Result<Self, crate::fit::FitError> {
+        let fitter = Fitter::new(library, opts.fit.clone())?;
+        Ok(StationProcessor {
+            silhouettes: SilhouetteExecutor::new(&calib, opts.silhouette),
+            calib,
+            opts,
+            fitter,
+            learned: 0,
+            smoothed: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
+            counts: FrameCounts::default(),
+            last_avatar: None,
+            last_measurements: None,
+            last_fit: None,
+            last_landmarks: Vec::new(),
+            silhouette_result: SilhouetteResult::empty(),
+        })
+    }
+
+    /// The smoothed measurements (key, value mm, stability mm).
+    pub fn measurements(&self) -> Vec<MeasurementValue> {
+        MEASUREMENT_KEYS
+            .iter()
+            .zip(&self.smoothed)
+            .filter_map(|(k, s)| {
+                Some(MeasurementValue {
+                    name: k.to_string(),
+                    value_mm: s.value()?,
+                    stability_mm: s.stability(),
+                })
+            })
+            .collect()
+    }
+
+    /// Largest frame-to-frame change of each girth over the recent window (mm).
+    pub fn max_steps(&self) -> Vec<(String, f64)> {
+        MEASUREMENT_KEYS
+            .iter()
+            .zip(&self.smoothed)
+            .map(|(k, s)| (k.to_string(), s.max_step()))
+            .collect()
+    }
+
+    pub fn avatar(&self) -> Option<Arc<TriMesh>> {
+        self.last_avatar.clone()
+    }
+
+    fn is_settled(&self) -> bool {
+        self.smoothed
+            .iter()
+            .all(|s| s.len() >= 3 && s.stability() <= self.opts.settled_mm)
+    }
+
+    fn process_inner(&mut self, pair: &FramePair, timer: &mut FrameTimer) -> FitSnapshot {
+        self.counts.total += 1;
+        for (view, img) in [
+            (crate::camera::View::Front, &pair.front),
+            (crate::camera::View::Side, &pair.side),
+        ] {
+            if let Err(e) = self.calib.check_frame_size(view, img.width(), img.height()) {
+                let mut s = FitSnapshot::empty(pair.index, Phase::LearningBackdrop);
+                s.messages.push(e.to_string());
+                return s;
+            }
+        }
+        if self.learned < self.opts.backdrop_frames {
+            let mut s = FitSnapshot::empty(pair.index, Phase::LearningBackdrop);
+            match self.silhouettes.learn_background(&pair.front, &pair.side) {
+                Ok(()) => self.learned += 1,
+                Err(e) => s.messages.push(format!("backdrop frame skipped: {e}")),
+            }
+            timer.lap("learn_backdrop");
+            s.messages.insert(
+                0,
+                format!(
+                    "Learning the empty scene ({}/{})",
+                    self.learned, self.opts.backdrop_frames
+                ),
+            );
+            return s;
+        }
+        // The silhouette result is reused frame after frame (its masks and contours keep
+        // their buffers): taken out of `self` for the frame, put back after.
+        let mut result = std::mem::replace(&mut self.silhouette_result, SilhouetteResult::empty());
+        if let Err(e) = self
+            .silhouettes
+            .process_into(&pair.front, &pair.side, &mut result)
+        {
+            self.silhouette_result = result;
+            let mut s = self.snapshot(pair.index, Phase::Guiding, None);
+            s.messages.push(format!("frame skipped: {e}"));
+            return s;
+        }
+        timer.lap("silhouettes");
+        let s = self.fit_and_measure(pair, timer, &result);
+        self.silhouette_result = result;
+        s
+    }
+
+    /// The part of a frame after the silhouettes: verdicts, fit, measurements.
+    fn fit_and_measure(
+        &mut self,
+        pair: &FramePair,
+        timer: &mut FrameTimer,
+        result: &SilhouetteResult,
+    ) -> FitSnapshot {
+        let verdicts = &result.landmarks.verdicts;
+        if verdicts.iter().any(|v| matches!(v, Verdict::NoPerson)) {
+            let mut s = self.snapshot(pair.index, Phase::WaitingForSubject, Some(result));
+            s.messages.push(Verdict::NoPerson.message());
+            return s;
+        }
+        self.counts.with_subject += 1;
+        let blocking: Vec<String> = verdicts
+            .iter()
+            .filter(|v| blocks_fit(v))
+            .map(|v| v.message())
+            .collect();
+        if !blocking.is_empty() {
+            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
+            s.messages.extend(blocking);
+            return s;
+        }
+        let Some(obs) = observation(result, self.opts.stature_m) else {
+            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
+            s.messages
+                .push("The landmarks could not be found in this frame.".into());
+            return s;
+        };
+        let masks = &result.masks;
+        let front = MaskRef {
+            width: masks.front.width,
+            height: masks.front.height,
+            data: &masks.front.data,
+        };
+        let side = MaskRef {
+            width: masks.side.width,
+            height: masks.side.height,
+            data: &masks.side.data,
+        };
+        let fit = self
+            .fitter
+            .fit(&self.calib, front, side, &obs)
+            .map(|(p, st)| (p.to_vec(), st));
+        timer.lap(if self.last_fit.is_some() {
+            "refit"
+        } else {
+            "first_fit"
+        });
+        let (positions, stats) = match fit {
+            Ok(x) => x,
+            Err(e) => {
+                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
+                s.messages.push(format!("fit skipped: {e}"));
+                return s;
+            }
+        };
+        let triangles = self.fitter.template_triangles().to_vec();
+        let avatar = TriMesh::new(positions, triangles);
+        match crate::measure::measure(&avatar) {
+            Ok(m) => {
+                let map = m.to_report_map();
+                for (k, s) in MEASUREMENT_KEYS.iter().zip(self.smoothed.iter_mut()) {
+                    if let Some(v) = map.get(*k).and_then(|v| v.as_f64()) {
+                        s.push(v);
+                    }
+                }
+                self.last_measurements = Some(m);
+                self.counts.fitted += 1;
+            }
+            Err(e) => {
+                timer.lap("measure");
+                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
+                s.messages.push(format!("measurement skipped: {e}"));
+                return s;
+            }
+        }
+        timer.lap("measure");
+        self.last_avatar = Some(Arc::new(avatar));
+        self.last_fit = Some(stats);
+        self.last_landmarks = result
+            .landmarks
+            .points
+            .iter()
+            .map(|p| (p.name.clone(), p.station))
+            .collect();
+        let phase = if self.is_settled() {
+            Phase::Settled
+        } else {
+            Phase::Fitting
+        };
+        let mut s = self.snapshot(pair.index, phase, Some(result));
+        s.messages.extend(
+            verdicts
+                .iter()
+                .filter(|v| !blocks_fit(v) && !matches!(v, Verdict::NoPerson))
+                .map(|v| v.message()),
+        );
+        s
+    }
+
+    fn snapshot(&self, index: u64, phase: Phase, result: Option<&SilhouetteResult>) -> FitSnapshot {
+        let mut s = FitSnapshot::empty(index, phase);
+        if let Some(r) = result {
+            s.front = overlay(&r.front);
+            s.side = overlay(&r.side);
+            s.landmarks_station = r
+                .landmarks
+                .points
+                .iter()
+                .map(|p| (p.name.clone(), p.station))
+                .collect();
+        }
+        if let Some(av) = &self.last_avatar {
+            s.front.avatar_outline = avatar_outline(av, &self.calib.front);
+            s.side.avatar_outline = avatar_outline(av, &self.calib.side);
+        }
+        s.avatar = self.last_avatar.clone();
+        s.measurements = self.measurements();
+        s
+    }
+}
+
+impl FrameProcessor for StationProcessor {
+    fn process(&mut self, pair: &FramePair) -> FitSnapshot {
+        let mut timer = FrameTimer::start();
+        let mut s = self.process_inner(pair, &mut timer);
+        let total: f64 = timer.stages().iter().map(|(_, ms)| ms).sum();
+        s.timings_ms = timer.into_stages();
+        s.timings_ms.push(("total".into(), total));
+        // The screen shows the frames the overlays belong to (kept in memory only).
+        s.front_frame = Some(Arc::new(pair.front.clone()));
+        s.side_frame = Some(Arc::new(pair.side.clone()));
+        s
+    }
+
+    fn reset_subject(&mut self) {
+        self.fitter.reset();
+        for s in &mut self.smoothed {
+            s.clear();
+        }
+        self.last_avatar = None;
+        self.last_measurements = None;
+        self.last_fit = None;
+        self.last_landmarks.clear();
+    }
+}
+
+/// Verdicts under which the frame is not fitted.
+fn blocks_fit(v: &Verdict) -> bool {
+    matches!(
+        v,
+        Verdict::NoPerson
+            | Verdict::MultiplePeople
+            | Verdict::CutOff { .. }
+            | Verdict::ArmsTouchingTorso { .. }
+            | Verdict::LegsTogether
+            | Verdict::UnderExposed { .. }
+            | Verdict::OverExposed { .. }
+    )
+}
+
+/// What the fitter needs from the landmarks.
+fn observation(r: &SilhouetteResult, stature_override: Option<f64>) -> Option<Observation> {
+    let lm = &r.landmarks;
+    let stature = stature_override.unwrap_or(lm.stature_m);
+    if !(stature.is_finite() && stature > 0.5 && stature < 2.6) {
+        return None;
+    }
+    let get = |n: LandmarkName| lm.get(n).map(|p| p.station);
+    let hip = get(LandmarkName::Hip)
+        .or_else(|| get(LandmarkName::Crotch).map(|c| c + DVec3::new(0.0, 0.05, 0.0)))?;
+    let angle = |a: Option<DVec3>, b: Option<DVec3>, side: f64| -> Option<f64> {
+        let d = b? - a?;
+        Some((d.x * side).atan2(-d.y))
+    };
+    let arms = angle(
+        get(LandmarkName::ShoulderLeft),
+        get(LandmarkName::WristLeft),
+        1.0,
+    )
+    .zip(angle(
+        get(LandmarkName::ShoulderRight),
+        get(LandmarkName::WristRight),
+        -1.0,
+    ));
+    let legs = angle(
+        get(LandmarkName::ThighRootLeft),
+        get(LandmarkName::AnkleLeft),
+        1.0,
+    )
+    .zip(angle(
+        get(LandmarkName::ThighRootRight),
+        get(LandmarkName::AnkleRight),
+        -1.0,
+    ));
+    Some(Observation {
+        stature_m: stature,
+        torso_point: hip,
+        arm_angles: arms,
+        leg_angles: legs,
+    })
+}
+
+fn overlay(a: &ViewAnalysis) -> ViewOverlay {
+    let pts = &a.contour.points;
+    ViewOverlay {
+        contour: pts.clone(),
+        parts: a
+            .parts
+            .iter()
+            .map(|p| {
+                (
+                    p.name.clone(),
+                    p.range
+                        .indices(pts.len())
+                        .filter_map(|i| pts.get(i).copied())
+                        .collect(),
+                )
+            })
+            .collect(),
+        landmarks: a
+            .landmarks_px
+            .iter()
+            .map(|(n, p)| (n.as_str().to_string(), *p))
+            .collect(),
+        bones: bones(a),
+        avatar_outline: Vec::new(),
+    }
+}
+
+/// Skeleton bones between the joints seen in a view (pixels).
+fn bones(a: &ViewAnalysis) -> Vec<(DVec2, DVec2)> {
+    use LandmarkName::*;
+    const CHAINS: [&[LandmarkName]; 5] = [
+        &[Hip, Abdomen, Waist, Chest, Neck, Head, HeadTop],
+        &[Neck, ShoulderLeft, ElbowLeft, WristLeft, HandLeft],
+        &[Neck, ShoulderRight, ElbowRight, WristRight, HandRight],
+        &[Hip, ThighRootLeft, KneeLeft, AnkleLeft],
+        &[Hip, ThighRootRight, KneeRight, AnkleRight],
+    ];
+    let mut out = Vec::new();
+    for chain in CHAINS {
+        for w in chain.windows(2) {
+            if let (Some(p), Some(q)) = (a.landmark(w[0]), a.landmark(w[1])) {
+                out.push((p, q));
+            }
+        }
+    }
+    out
+}
+
+/// The avatar's outline in a camera: projected boundary of its vertices' convex...
+/// approximated by the extreme projected vertex of each image row band (left and right
+/// sides), enough to show how the fit sits on the silhouette.
+fn avatar_outline(av: &TriMesh, cam: &crate::camera::Camera) -> Vec<DVec2> {
+    const BAND_PX: f64 = 6.0;
+    let proj: Vec<DVec2> = av
+        .positions
+        .iter()
+        .filter_map(|p| cam.project(*p))
+        .collect();
+    if proj.is_empty() {
+        return Vec::new();
+    }
+    let miny = proj.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+    let maxy = proj.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+    let n = (((maxy - miny) / BAND_PX).ceil() as usize).clamp(1, 2000);
+    let mut lo = vec![DVec2::splat(f64::MAX); n];
+    let mut hi = vec![DVec2::splat(f64::MIN); n];
+    for p in &proj {
+        let k = (((p.y - miny) / BAND_PX) as usize).min(n - 1);
+        if p.x < lo[k].x {
+            lo[k] = *p;
+        }
+        if p.x > hi[k].x {
+            hi[k] = *p;
+        }
+    }
+    let mut out: Vec<DVec2> = lo.into_iter().filter(|p| p.x < f64::MAX).collect();
+    out.extend(hi.into_iter().rev().filter(|p| p.x > f64::MIN));
+    out
+}

@@ -1,0 +1,310 @@
+//! Recording I/O: frames written by `RecordingWriter` come back from `Recording`
+//! bit-exactly (PNG) or within codec tolerance (JPEG, H.264 MP4); MP4 files play in
+//! ffprobe; truncated and corrupt files give up the readable frames with warnings.
+
+use fitstation::camera::StationCalibration;
+use fitstation::recording::{FrameFormat, Recording, RecordingMeta, RecordingWriter};
+use fitstation::synth::rng::SplitMix64;
+use fitstation::synth::scene::{Background, Film, Scene};
+use image::RgbImage;
+use std::path::{Path, PathBuf};
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fitstation-rec-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    d
+}
+
+/// Frames of the synthetic empty room with a moving bright square (so frames differ),
+/// in a landscape front and a portrait side camera of reduced size.
+fn frames(n: usize) -> (StationCalibration, Vec<(RgbImage, RgbImage)>) {
+    let mut calib = StationCalibration::nominal(320, 240, 300.0, 3.0, 1.2, 1.0);
+    let side = StationCalibration::nominal(240, 320, 400.0, 3.0, 1.2, 1.0);
+    calib.side = side.side;
+    calib.front.intrinsics.dist = [-0.1, 0.02, 0.0, 0.0, 0.0];
+    let mut rng = SplitMix64::new(9);
+    let scene = Scene::random(&mut rng, [&calib.front, &calib.side]);
+    let film = Film::random(&mut rng);
+    let bgs = [
+        Background::render(&scene, &calib.front),
+        Background::render(&scene, &calib.side),
+    ];
+    let mut out = Vec::new();
+    let mut scratch = Vec::new();
+    for k in 0..n {
+        let mut pair = Vec::new();
+        for bg in &bgs {
+            let mut rad = bg.empty.clone();
+            for y in 40..90 {
+                for x in (20 + 6 * k)..(60 + 6 * k) {
+                    if let Some(p) = rad.get_mut(y * bg.width as usize + x) {
+                        *p = [0.9, 0.5, 0.2];
+                    }
+                }
+            }
+            let mut img = RgbImage::new(bg.width, bg.height);
+            let mut nrng = SplitMix64::stream(3, k as u64);
+            film.develop(&mut rad, &mut scratch, 1.0, &mut nrng, &mut img);
+            pair.push(img);
+        }
+        let side = pair.pop().unwrap();
+        let front = pair.pop().unwrap();
+        out.push((front, side));
+    }
+    (calib, out)
+}
+
+fn psnr(a: &RgbImage, b: &RgbImage) -> f64 {
+    assert_eq!(a.dimensions(), b.dimensions());
+    let mse = a
+        .as_raw()
+        .iter()
+        .zip(b.as_raw())
+        .map(|(x, y)| (*x as f64 - *y as f64).powi(2))
+        .sum::<f64>()
+        / a.as_raw().len() as f64;
+    10.0 * (255.0f64 * 255.0 / mse.max(1e-12)).log10()
+}
+
+fn write(
+    dir: &Path,
+    calib: &StationCalibration,
+    frames: &[(RgbImage, RgbImage)],
+    fmt: FrameFormat,
+) {
+    let meta = RecordingMeta {
+        fps: 30.0,
+        stature_m: Some(1.71),
+        notes: Some("round trip".into()),
+        date: None,
+    };
+    let mut w = RecordingWriter::with_meta(dir, calib, fmt, meta).unwrap();
+    for (f, s) in frames {
+        w.push_pair(f, s).unwrap();
+    }
+    w.finish().unwrap();
+}
+
+#[test]
+fn png_round_trip_is_bit_exact() {
+    let (calib, fr) = frames(5);
+    let dir = tmp("png");
+    write(&dir, &calib, &fr, FrameFormat::Png);
+    let mut r = Recording::open(&dir).unwrap();
+    assert_eq!(r.len(), 5);
+    assert_eq!(r.metadata().stature_m, Some(1.71));
+    assert_eq!(r.calibration().front.intrinsics, calib.front.intrinsics);
+    for (k, (f, s)) in fr.iter().enumerate() {
+        let (rf, rs) = r.frame_pair(k).unwrap();
+        assert!(rf == *f && rs == *s, "frame {k} differs");
+    }
+    assert!(r.warnings().is_empty(), "{:?}", r.warnings());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn jpeg_round_trip_within_tolerance() {
+    let (calib, fr) = frames(3);
+    let dir = tmp("jpeg");
+    write(&dir, &calib, &fr, FrameFormat::Jpeg);
+    let mut r = Recording::open(&dir).unwrap();
+    assert_eq!(r.len(), 3);
+    for (k, (f, s)) in fr.iter().enumerate() {
+        let (rf, rs) = r.frame_pair(k).unwrap();
+        assert!(psnr(f, &rf) > 30.0 && psnr(s, &rs) > 30.0, "frame {k}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn mp4_round_trip_within_codec_tolerance_and_plays_in_ffprobe() {
+    let n = 12;
+    let (calib, fr) = frames(n);
+    let dir = tmp("mp4");
+    write(&dir, &calib, &fr, FrameFormat::Mp4);
+    let mut r = Recording::open(&dir).unwrap();
+    assert_eq!(r.len(), n);
+    let mut worst = f64::INFINITY;
+    for (k, (f, s)) in fr.iter().enumerate() {
+        let (rf, rs) = r.frame_pair(k).unwrap();
+        worst = worst.min(psnr(f, &rf)).min(psnr(s, &rs));
+    }
+    println!("MP4 round trip: worst PSNR {worst:.1} dB");
+    assert!(worst > 30.0, "worst PSNR {worst:.1} dB");
+    // Going back re-decodes from the start and gives the same frame.
+    let (a, _) = r.frame_pair(1).unwrap();
+    let (b, _) = r.frame_pair(1).unwrap();
+    assert!(a == b);
+    assert!(r.warnings().is_empty(), "{:?}", r.warnings());
+    ffprobe_check(&dir.join("front.mp4"), n, (320, 240));
+    ffprobe_check(&dir.join("side.mp4"), n, (240, 320));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Runs ffprobe on the file when it is installed (CI installs it): the file must show
+/// one H.264 stream of the right size and frame count.
+fn ffprobe_check(file: &Path, frames: usize, size: (u32, u32)) {
+    let out = std::process::Command::new("ffprobe")
+        .args(["-v", "error", "-count_frames", "-select_streams", "v:0"])
+        .args([
+            "-show_entries",
+            "stream=codec_name,width,height,nb_read_frames",
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(file)
+        .output();
+    match out {
+        Err(_) => {
+            println!(
+                "SKIPPED: ffprobe not installed; {} was not checked in a player",
+                file.display()
+            );
+            assert!(
+                std::env::var_os("CI").is_none(),
+                "ffprobe is required when CI is set"
+            );
+        }
+        Ok(o) => {
+            assert!(
+                o.status.success(),
+                "ffprobe failed: {}",
+                String::from_utf8_lossy(&o.stderr)
+            );
+            let text = String::from_utf8_lossy(&o.stdout).trim().to_string();
+            assert_eq!(
+                text,
+                format!("h264,{},{},{frames}", size.0, size.1),
+                "ffprobe says {text}"
+            );
+        }
+    }
+}
+
+#[test]
+fn truncated_mp4_gives_the_readable_frames() {
+    let n = 12;
+    let (calib, fr) = frames(n);
+    let dir = tmp("trunc");
+    write(&dir, &calib, &fr, FrameFormat::Mp4);
+    for view in ["front", "side"] {
+        let p = dir.join(format!("{view}.mp4"));
+        let bytes = std::fs::read(&p).unwrap();
+        // Cut in the media data: the index (moov, written last) is lost.
+        std::fs::write(&p, &bytes[..bytes.len() * 6 / 10]).unwrap();
+    }
+    let mut r = Recording::open(&dir).unwrap();
+    assert!(!r.warnings().is_empty());
+    assert!(r.len() >= 2 && r.len() < n, "{} frames recovered", r.len());
+    let recovered = r.len();
+    for (k, (front, _)) in fr.iter().enumerate().take(recovered) {
+        let (f, _) = r.frame_pair(k).unwrap();
+        assert!(psnr(front, &f) > 30.0, "recovered frame {k}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn corrupt_files_are_reported_not_panicked_on() {
+    let (calib, fr) = frames(6);
+    let dir = tmp("corrupt");
+    write(&dir, &calib, &fr, FrameFormat::Mp4);
+    let p = dir.join("front.mp4");
+    let mut bytes = std::fs::read(&p).unwrap();
+    // Damage the last frames' media data (just before the index, written last).
+    let moov = bytes.windows(4).rposition(|w| w == b"moov").unwrap();
+    for b in &mut bytes[moov - 300..moov - 100] {
+        *b = 0xFF;
+    }
+    std::fs::write(&p, &bytes).unwrap();
+    let mut r = Recording::open(&dir).unwrap();
+    let ok = (0..r.len()).filter(|&k| r.frame_pair(k).is_ok()).count();
+    assert!(ok >= 3, "only {ok} of {} frames readable", r.len());
+    // A PNG folder with one broken file and one missing side frame.
+    let dir2 = tmp("corrupt-png");
+    write(&dir2, &calib, &fr, FrameFormat::Png);
+    std::fs::write(dir2.join("front/000002.png"), b"not a png").unwrap();
+    std::fs::remove_file(dir2.join("side/000004.png")).unwrap();
+    let mut r = Recording::open(&dir2).unwrap();
+    assert_eq!(r.len(), 5);
+    assert!(r.warnings().iter().any(|w| w.contains("000004")));
+    assert!(r.frame_pair(2).is_err());
+    assert!(r.frame_pair(3).is_ok());
+    assert!(r.warnings().len() >= 2);
+    let _ = std::fs::remove_dir_all(&dir);
+    let _ = std::fs::remove_dir_all(&dir2);
+}
+
+#[test]
+fn missing_calibration_is_a_clear_error() {
+    let dir = tmp("nocalib");
+    std::fs::create_dir_all(&dir).unwrap();
+    let e = Recording::open(&dir).err().unwrap().to_string();
+    assert!(e.contains("station.yaml"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn mp4_plays_in_opencv_ffmpeg() {
+    let have_cv2 = std::process::Command::new("python3")
+        .args(["-c", "import cv2"])
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have_cv2 {
+        println!("SKIPPED: python3 with cv2 is not available; MP4 playback in OpenCV not checked");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "cv2 is required when CI is set"
+        );
+        return;
+    }
+    let n = 8;
+    let (calib, fr) = frames(n);
+    let (mp4, png) = (tmp("play-mp4"), tmp("play-png"));
+    write(&mp4, &calib, &fr, FrameFormat::Mp4);
+    write(&png, &calib, &fr, FrameFormat::Png);
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tests/opencv/synth_mp4_play.py"
+    );
+    for view in ["front", "side"] {
+        let out = std::process::Command::new("python3")
+            .arg(script)
+            .arg(mp4.join(format!("{view}.mp4")))
+            .arg(png.join(view))
+            .arg(n.to_string())
+            .output()
+            .unwrap();
+        println!("{}", String::from_utf8_lossy(&out.stdout));
+        assert!(
+            out.status.success(),
+            "{}{}",
+            String::from_utf8_lossy(&out.stdout),
+            String::from_utf8_lossy(&out.stderr)
+        );
+    }
+    let _ = std::fs::remove_dir_all(&mp4);
+    let _ = std::fs::remove_dir_all(&png);
+}
+
+#[test]
+fn mp4_random_access_gives_the_same_frames() {
+    let n = 36; // more than one IDR period
+    let (calib, fr) = frames(n);
+    let dir = tmp("seek");
+    write(&dir, &calib, &fr, FrameFormat::Mp4);
+    let mut r = Recording::open(&dir).unwrap();
+    let mut sequential = Vec::new();
+    for k in 0..n {
+        sequential.push(r.frame_pair(k).unwrap().0);
+    }
+    let mut r = Recording::open(&dir).unwrap();
+    for k in [33, 2, 31, 30, 35, 0, 17] {
+        let (f, _) = r.frame_pair(k).unwrap();
+        assert!(
+            f == sequential[k],
+            "frame {k} differs when reached by seeking"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

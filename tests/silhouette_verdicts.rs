@@ -1,0 +1,228 @@
+//! Every frame verdict is exercised by a frame that should trigger it and by frames that
+//! should not (the good A-pose frame, and near misses).
+
+mod silhouette_common;
+
+use fitstation::camera::View;
+use fitstation::landmarks::phantom::{Phantom, PhantomParams, SceneParams};
+use fitstation::landmarks::{FrameEdge, SilhouetteResult, Verdict};
+use glam::DVec3;
+use silhouette_common::*;
+
+fn run(people: &[Phantom], scene: SceneParams) -> SilhouetteResult {
+    let mut ex = learned_executor(2);
+    let p = render(people, scene);
+    ex.process(&p.front, &p.side).expect("process")
+}
+
+fn has(r: &SilhouetteResult, f: impl Fn(&Verdict) -> bool) -> bool {
+    r.landmarks.verdicts.iter().any(f)
+}
+
+fn scene(seed: u64) -> SceneParams {
+    SceneParams {
+        seed,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn a_good_frame_has_no_verdict() {
+    let r = run(&[subject()], scene(11));
+    assert!(
+        r.landmarks.verdicts.is_empty(),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    assert!(r.landmarks.stature_m > 1.6);
+}
+
+#[test]
+fn an_empty_scene_has_no_person() {
+    let r = run(
+        &[],
+        SceneParams {
+            shadow: false,
+            ..scene(12)
+        },
+    );
+    assert!(
+        has(&r, |v| matches!(v, Verdict::NoPerson)),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    assert!(r.landmarks.points.is_empty());
+}
+
+#[test]
+fn a_second_person_behind_is_seen() {
+    let other = Phantom::new(PhantomParams {
+        offset: DVec3::new(-1.2, 0.0, -0.6),
+        scale: 0.95,
+        arm_abduction_deg: 15.0,
+        ..Default::default()
+    });
+    let r = run(&[subject(), other], scene(13));
+    assert!(
+        has(&r, |v| matches!(v, Verdict::MultiplePeople)),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+}
+
+#[test]
+fn a_tall_subject_is_cut_off_at_the_top() {
+    let tall = Phantom::new(PhantomParams {
+        scale: 1.3,
+        ..Default::default()
+    });
+    let r = run(&[tall], scene(14));
+    assert!(
+        has(&r, |v| matches!(
+            v,
+            Verdict::CutOff {
+                view: View::Front,
+                edge: FrameEdge::Top
+            }
+        )),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    assert!(!has(&r, |v| matches!(
+        v,
+        Verdict::CutOff {
+            edge: FrameEdge::Bottom,
+            ..
+        }
+    )));
+}
+
+#[test]
+fn arms_against_the_body_are_reported_and_a_narrow_gap_is_not() {
+    let down = Phantom::new(PhantomParams {
+        arm_abduction_deg: 0.0,
+        ..Default::default()
+    });
+    let r = run(&[down], scene(15));
+    assert!(
+        has(&r, |v| matches!(
+            v,
+            Verdict::ArmsTouchingTorso {
+                left: true,
+                right: true
+            }
+        )),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    let narrow = Phantom::new(PhantomParams {
+        arm_abduction_deg: 16.0,
+        ..Default::default()
+    });
+    let r = run(&[narrow], scene(16));
+    assert!(
+        !has(&r, |v| matches!(v, Verdict::ArmsTouchingTorso { .. })),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+}
+
+#[test]
+fn legs_together_are_reported_and_slightly_apart_are_not() {
+    let together = Phantom::new(PhantomParams {
+        leg_spread_m: 0.0,
+        hip_half_m: 0.06,
+        ..Default::default()
+    });
+    let r = run(&[together], scene(17));
+    assert!(
+        has(&r, |v| matches!(v, Verdict::LegsTogether)),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    let apart = Phantom::new(PhantomParams {
+        leg_spread_m: 0.0,
+        hip_half_m: 0.085,
+        ..Default::default()
+    });
+    let r = run(&[apart], scene(18));
+    assert!(
+        !has(&r, |v| matches!(v, Verdict::LegsTogether)),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+}
+
+#[test]
+fn exposure_verdicts() {
+    let r = run(
+        &[subject()],
+        SceneParams {
+            gain: 0.15,
+            ..scene(19)
+        },
+    );
+    assert!(
+        has(&r, |v| matches!(v, Verdict::UnderExposed { .. })),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    assert!(!has(&r, |v| matches!(v, Verdict::OverExposed { .. })));
+    let r = run(
+        &[subject()],
+        SceneParams {
+            gain: 2.2,
+            ..scene(20)
+        },
+    );
+    assert!(
+        has(&r, |v| matches!(v, Verdict::OverExposed { .. })),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+    assert!(!has(&r, |v| matches!(v, Verdict::UnderExposed { .. })));
+    // A dimmer light within the model's tolerance is not a verdict.
+    let r = run(
+        &[subject()],
+        SceneParams {
+            gain: 0.9,
+            ..scene(21)
+        },
+    );
+    assert!(
+        !has(&r, |v| matches!(
+            v,
+            Verdict::UnderExposed { .. } | Verdict::OverExposed { .. }
+        )),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+}
+
+#[test]
+fn off_the_mark_is_measured_and_near_the_mark_is_fine() {
+    let off = Phantom::new(PhantomParams {
+        offset: DVec3::new(0.06, 0.0, 0.14),
+        ..Default::default()
+    });
+    let r = run(&[off], scene(22));
+    let v = r.landmarks.verdicts.iter().find_map(|v| match v {
+        Verdict::OffMark { dx_m, dz_m } => Some((*dx_m, *dz_m)),
+        _ => None,
+    });
+    let (dx, dz) = v.unwrap_or_else(|| panic!("no OffMark in {:?}", r.landmarks.verdicts));
+    assert!(
+        (dx - 0.06).abs() < 0.02 && (dz - 0.14).abs() < 0.02,
+        "dx {dx} dz {dz}"
+    );
+    let near = Phantom::new(PhantomParams {
+        offset: DVec3::new(0.03, 0.0, -0.04),
+        ..Default::default()
+    });
+    let r = run(&[near], scene(23));
+    assert!(
+        !has(&r, |v| matches!(v, Verdict::OffMark { .. })),
+        "{:?}",
+        r.landmarks.verdicts
+    );
+}

@@ -1,0 +1,231 @@
+//! The station end to end: a synthetic recording replayed through segmentation, landmarks,
+//! the fit and measurements, compared with its ground truth; and the bad inputs a kiosk
+//! meets, which must give clear errors, a non-zero exit and nothing half-written.
+
+use fitstation::recording::FrameFormat;
+use fitstation::synth::{load_truth, render_recording, truth_dir, SynthConfig};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fitstation-station-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+fn synth(dir: &Path, seed: u64, subject_frames: usize) -> PathBuf {
+    let rec = dir.join(format!("s{seed}"));
+    let mut cfg = SynthConfig::from_seed(seed);
+    cfg.empty_frames = 10;
+    cfg.subject_frames = subject_frames;
+    cfg.format = FrameFormat::Png;
+    render_recording(&cfg, &rec).expect("render");
+    rec
+}
+
+fn fitstation(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_fitstation"))
+        .args(args)
+        .output()
+        .expect("run fitstation")
+}
+
+#[test]
+fn replay_measures_a_synthetic_subject_close_to_its_truth() {
+    let dir = tmp("replay");
+    let rec = synth(&dir, 7, 4);
+    let out = dir.join("out");
+    let o = fitstation(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        o.status.success(),
+        "replay failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    let truth = load_truth(&truth_dir(&rec)).unwrap();
+    assert_eq!(report["frames"]["total"], 14);
+    assert!(
+        report["frames"]["fitted"].as_u64().unwrap() >= 3,
+        "{}",
+        report["frames"]
+    );
+    // This guards the wiring end to end (a broken stage gives errors of hundreds of mm or
+    // no fit at all); the accuracy figures come from `fitstation eval` (README). The
+    // bounds are the fit's current error on this subject with a margin: stature 15 mm,
+    // girths 12% of the true value.
+    for key in [
+        "stature",
+        "chest_girth",
+        "waist_girth",
+        "hip_girth",
+        "thigh_girth_left",
+        "thigh_girth_right",
+    ] {
+        let got = report["measurements_mm"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no {key} in report"));
+        let want = truth.measurements_mm[key];
+        let tol = if key == "stature" { 15.0 } else { 0.12 * want };
+        assert!(
+            (got - want).abs() < tol,
+            "{key}: fitted {got:.1} mm, truth {want:.1} mm"
+        );
+    }
+    let avatar = fitstation::mesh::io::read_obj(&out.join("avatar.obj"), None).unwrap();
+    let template = fitstation::body::ShapeLibrary::load_default().unwrap();
+    assert_eq!(
+        avatar.vertex_count(),
+        template.template().mesh.vertex_count()
+    );
+    for stage in ["silhouettes", "measure"] {
+        assert!(
+            report["timings_ms"][stage]["median"].as_f64().is_some(),
+            "no timing for {stage}"
+        );
+    }
+}
+
+#[test]
+fn an_empty_scene_is_an_error_and_writes_nothing() {
+    let dir = tmp("empty");
+    let rec = dir.join("empty");
+    let mut cfg = SynthConfig::from_seed(3);
+    cfg.empty_frames = 12;
+    cfg.subject_frames = 0;
+    cfg.format = FrameFormat::Png;
+    cfg.truth = false;
+    render_recording(&cfg, &rec).expect("render");
+    let out = dir.join("out");
+    let o = fitstation(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("no frame could be fitted"), "{err}");
+    assert!(!out.exists(), "nothing may be written");
+}
+
+#[test]
+fn bad_inputs_give_clear_errors() {
+    let dir = tmp("bad");
+    // Missing recording.
+    let o = fitstation(&[
+        "replay",
+        dir.join("nope").to_str().unwrap(),
+        "--out",
+        dir.join("o1").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("nope"));
+    assert!(!dir.join("o1").exists());
+    // A calibration made for other image sizes.
+    let rec = synth(&dir, 5, 2);
+    let yaml = std::fs::read_to_string(rec.join("station.yaml")).unwrap();
+    let bad = yaml
+        .replace("front_image_width: ", "front_image_width: 1")
+        .replace("front_image_height: ", "front_image_height: 1");
+    std::fs::write(rec.join("station.yaml"), bad).unwrap();
+    let out = dir.join("o2");
+    let o = fitstation(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("calibration") || err.contains("recalibrate"),
+        "{err}"
+    );
+    assert!(!out.exists());
+    // Stills: a missing image file, and a truncated PNG.
+    let calib = rec.join("station.yaml");
+    let o = fitstation(&[
+        "fit",
+        "--front",
+        "/nonexistent.png",
+        "--side",
+        "/nonexistent.png",
+        "--calib",
+        calib.to_str().unwrap(),
+        "--out",
+        dir.join("o3").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("nonexistent"));
+    let png = rec.join("front").join("000010.png");
+    let bytes = std::fs::read(&png).unwrap();
+    let cut = dir.join("cut.png");
+    std::fs::write(&cut, &bytes[..bytes.len() / 3]).unwrap();
+    let o = fitstation(&[
+        "fit",
+        "--front",
+        cut.to_str().unwrap(),
+        "--side",
+        cut.to_str().unwrap(),
+        "--calib",
+        calib.to_str().unwrap(),
+        "--out",
+        dir.join("o4").to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(String::from_utf8_lossy(&o.stderr).contains("cut.png"));
+    assert!(!dir.join("o3").exists() && !dir.join("o4").exists());
+}
+
+#[test]
+fn fit_on_stills_with_empty_scene_writes_outputs() {
+    let dir = tmp("stills");
+    let rec = synth(&dir, 9, 2);
+    let p = |v: &str, k: usize| {
+        rec.join(v)
+            .join(format!("{k:06}.png"))
+            .to_string_lossy()
+            .into_owned()
+    };
+    let out = dir.join("out");
+    let calib = rec.join("station.yaml");
+    let o = fitstation(&[
+        "fit",
+        "--front",
+        &p("front", 10),
+        "--side",
+        &p("side", 10),
+        "--front-bg",
+        &p("front", 0),
+        "--side-bg",
+        &p("side", 0),
+        "--calib",
+        calib.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
+    assert!(
+        o.status.success(),
+        "fit failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).unwrap()).unwrap();
+    assert_eq!(report["frames"]["fitted"], 1);
+    let truth = load_truth(&truth_dir(&rec)).unwrap();
+    let stature = report["measurements_mm"]["stature"].as_f64().unwrap();
+    assert!(
+        (stature - truth.measurements_mm["stature"]).abs() < 20.0,
+        "stature {stature}"
+    );
+    assert!(out.join("avatar.obj").exists());
+}
