@@ -69,6 +69,7 @@ mod anderson;
 mod encoding;
 mod laplacian;
 mod mvc;
+mod newton;
 mod skinning;
 mod solver;
 
@@ -106,6 +107,28 @@ pub struct DecodeOptions {
     pub constraint_weight: f64,
     /// How the fast decoder's sparse analysis is shared (see [`SymbolicReuse`]).
     pub symbolic: SymbolicReuse,
+    /// How the fast decoder linearises the normal offsets (see [`Linearisation`]).
+    pub linearisation: Linearisation,
+    /// Coupled linearisation only: a solve that needs more steps than this re-linearises
+    /// at its result (a numeric refactor; the analysis is kept), so the next frames start
+    /// from an up-to-date model. `usize::MAX` never does. Default
+    /// [`DEFAULT_RELINEARISE_AFTER`].
+    pub relinearise_after: usize,
+}
+
+/// How the fast decoder models the normal offsets `s n` of the decoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Linearisation {
+    /// Gauss-Newton on the coupled system: the Jacobian includes how each offset turns and
+    /// stretches with its ring (x, y, z coupled, one `3F x 3F` factor for `F` free
+    /// vertices), linearised at the rest shape when the control set is given and reused
+    /// (chord steps) until a solve needs more than `relinearise_after` steps. Hard
+    /// constraints only (with weighted ones the frozen offsets are used). The default.
+    #[default]
+    Coupled,
+    /// Offsets frozen at the current positions, one scalar factor for x, y and z, steps
+    /// mixed by Anderson acceleration.
+    FrozenOffsets,
 }
 
 /// Sharing of the fast decoder's symbolic Cholesky analysis.
@@ -126,6 +149,10 @@ pub enum SymbolicReuse {
 pub const DEFAULT_MAX_MOVE_M: f64 = 1e-4;
 /// Default iteration cap.
 pub const DEFAULT_MAX_ITERATIONS: usize = 50;
+/// Default of [`DecodeOptions::relinearise_after`]: chord steps from a linearisation a
+/// few millimetres away contract by about ten per step, so a solve of more than this many
+/// steps means the shape has drifted from the linearisation point.
+pub const DEFAULT_RELINEARISE_AFTER: usize = 4;
 
 impl Default for DecodeOptions {
     fn default() -> Self {
@@ -134,6 +161,8 @@ impl Default for DecodeOptions {
             max_iterations: DEFAULT_MAX_ITERATIONS,
             constraint_weight: f64::INFINITY,
             symbolic: SymbolicReuse::default(),
+            linearisation: Linearisation::default(),
+            relinearise_after: DEFAULT_RELINEARISE_AFTER,
         }
     }
 }
@@ -153,6 +182,8 @@ pub struct DecodeReport {
     pub constraint_residual_m: f64,
     /// Whether the convergence test passed before the iteration cap.
     pub converged: bool,
+    /// Whether the fast decoder re-linearised its coupled system at the end of this solve.
+    pub relinearised: bool,
 }
 
 /// Errors of the deformers.

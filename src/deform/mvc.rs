@@ -5,13 +5,14 @@
 
 use super::anderson::Anderson;
 use super::encoding::MeanValueEncoding;
+use super::newton::CoupledSystem;
 use super::solver::{
     component_anchor_candidates, components, fixed_with_anchors, Constraints, Engine,
     NormalEquations, ReducedSystem, RowSystem,
 };
 use super::{
     check_solve_inputs, control_mask, ConvergenceMonitor, DecodeOptions, DecodeReport, DecoderKind,
-    DeformError, SymbolicReuse,
+    DeformError, Linearisation, SymbolicReuse,
 };
 use crate::mesh::TriMesh;
 use glam::DVec3;
@@ -40,6 +41,15 @@ pub struct MvcDeformer {
     /// Fast solver: the plain step's result, and the acceleration history.
     step_out: Vec<DVec3>,
     anderson: Anderson,
+    /// Fast solver, coupled linearisation: the `3F x 3F` Gauss-Newton system of the
+    /// current fixed set, and whether it is in use (else the frozen-offset engine).
+    coupled: Option<CoupledSystem>,
+    coupled_active: bool,
+    /// The scalar engine has been factored for the current fixed set.
+    engine_factored: bool,
+    /// Rest positions (the first linearisation point) and mean edge length, metres.
+    rest: Vec<DVec3>,
+    mean_edge_m: f64,
 }
 
 impl MvcDeformer {
@@ -127,6 +137,11 @@ impl MvcDeformer {
             } else {
                 0
             }),
+            coupled: None,
+            coupled_active: false,
+            engine_factored: false,
+            rest: rest.positions.clone(),
+            mean_edge_m: rest.mean_edge_length(),
         };
         match d.system {
             // Analysed when the first control set arrives (or at the first solve).
@@ -136,9 +151,10 @@ impl MvcDeformer {
         Ok(d)
     }
 
-    /// Sets or replaces the control vertices (indices). For the fast decoder this
-    /// refactors numerically; the symbolic analysis is kept (its pattern does not depend
-    /// on the control set).
+    /// Sets or replaces the control vertices (indices). For the fast decoder with the
+    /// coupled linearisation this analyses and factors the coupled system of the new
+    /// fixed set, linearised at the rest shape (nothing is redone for the same set); with
+    /// frozen offsets it refactors the scalar system.
     ///
     /// # Errors
     /// An index out of range or listed twice; a failed factorisation.
@@ -161,6 +177,39 @@ impl MvcDeformer {
         if self.kind == DecoderKind::FastGaussNewton {
             self.anderson.resize(self.free.len());
         }
+        let coupled_wanted = self.kind == DecoderKind::FastGaussNewton
+            && !soft
+            && self.opts.linearisation == Linearisation::Coupled;
+        self.coupled_active = false;
+        self.engine_factored = false;
+        if coupled_wanted {
+            let reuse = self
+                .coupled
+                .as_ref()
+                .is_some_and(|c| c.is_factored() && c.matches(&self.fixed));
+            if reuse {
+                self.coupled_active = true;
+            } else {
+                self.coupled = None;
+                // A failed coupled factorisation falls back to the frozen offsets.
+                if let Ok(mut c) = CoupledSystem::new(&self.encoding, &self.fixed, self.mean_edge_m)
+                {
+                    if c.linearise(&self.encoding, &self.rest).is_ok() {
+                        self.coupled = Some(c);
+                        self.coupled_active = true;
+                    }
+                }
+            }
+        }
+        if !self.coupled_active {
+            self.factor_engine()?;
+        }
+        self.needs_factor = false;
+        Ok(())
+    }
+
+    /// Factors the scalar (frozen-offset) engine for the current fixed set.
+    fn factor_engine(&mut self) -> Result<(), DeformError> {
         if let Some(sys) = &mut self.system {
             let mode = if self.opts.constraint_weight.is_finite() {
                 Constraints::Weighted(self.opts.constraint_weight)
@@ -169,7 +218,39 @@ impl MvcDeformer {
             };
             sys.factor(&self.fixed, mode)?;
         }
-        self.needs_factor = false;
+        self.engine_factored = true;
+        Ok(())
+    }
+
+    /// Re-linearises the coupled system at `positions` (controls at their targets, e.g.
+    /// the result of the last solve) and refactors it numerically; the next solves take
+    /// chord steps from there. A no-op for the other decoders. If the factorisation
+    /// fails the deformer falls back to the frozen offsets.
+    ///
+    /// # Errors
+    /// Wrong position count; a failed fallback factorisation.
+    pub fn relinearise(&mut self, positions: &[DVec3]) -> Result<(), DeformError> {
+        let n = self.encoding.vertex_count();
+        if positions.len() != n {
+            return Err(DeformError::PositionCount {
+                got: positions.len(),
+                expected: n,
+            });
+        }
+        if !self.coupled_active {
+            return Ok(());
+        }
+        let ok = match &mut self.coupled {
+            Some(c) => c.linearise(&self.encoding, positions).is_ok(),
+            None => false,
+        };
+        if !ok {
+            self.coupled = None;
+            self.coupled_active = false;
+            if !self.engine_factored {
+                self.factor_engine()?;
+            }
+        }
         Ok(())
     }
 
@@ -188,17 +269,48 @@ impl MvcDeformer {
         if self.needs_factor {
             self.set_controls(&[])?;
         }
-        // Control vertices jump to their targets (both decoders start there).
-        for (&c, t) in self.controls.iter().zip(targets) {
-            positions[c as usize] = *t;
-        }
         let mut monitor = ConvergenceMonitor::new(self.opts.max_move_m);
         let mut report = DecodeReport::default();
         // A fresh history per solve: differences carried over from the previous targets
         // saved a few steps on the body with rigid extremities but tripled the refit
         // with free ones (measured), so they are not kept.
         self.anderson.reset();
-        for it in 0..self.opts.max_iterations {
+        let mut first = 0;
+        if self.coupled_active && self.opts.max_iterations > 0 {
+            // Predictor: the linear response of the current surface to the control moves
+            // (see `CoupledSystem::step`), then chord steps.
+            if let Some(c) = &mut self.coupled {
+                self.delta.iter_mut().for_each(|d| *d = DVec3::ZERO);
+                for (&v, t) in self.controls.iter().zip(targets) {
+                    self.delta[v as usize] = *t - positions[v as usize];
+                }
+                let (moved, _) = c.step(
+                    &self.encoding,
+                    positions,
+                    Some(&self.delta),
+                    &mut self.step_out,
+                );
+                positions.copy_from_slice(&self.step_out);
+                for (&v, t) in self.controls.iter().zip(targets) {
+                    positions[v as usize] = *t;
+                }
+                report.iterations = 1;
+                report.max_move_m = moved;
+                if !moved.is_finite() {
+                    return Err(DeformError::Diverged(1));
+                }
+                report.converged = monitor.update(moved);
+                first = 1;
+            }
+        }
+        // Control vertices jump to their targets (both decoders start there).
+        for (&c, t) in self.controls.iter().zip(targets) {
+            positions[c as usize] = *t;
+        }
+        for it in first..self.opts.max_iterations {
+            if report.converged {
+                break;
+            }
             let max_move = match self.kind {
                 DecoderKind::PaperIterative => self.paper_sweep(positions),
                 DecoderKind::FastGaussNewton => self.gauss_newton_step(targets, positions),
@@ -212,6 +324,10 @@ impl MvcDeformer {
                 report.converged = true;
                 break;
             }
+        }
+        if self.coupled_active && report.iterations > self.opts.relinearise_after {
+            self.relinearise(positions)?;
+            report.relinearised = self.coupled_active;
         }
         report.residual_m = self.residual(positions);
         report.constraint_residual_m = self
@@ -246,6 +362,17 @@ impl MvcDeformer {
     /// method.md section 3), mixed with the previous steps by Anderson acceleration.
     /// Returns the larger of the move and the plain step's length.
     fn gauss_newton_step(&mut self, targets: &[DVec3], positions: &mut [DVec3]) -> f64 {
+        if self.coupled_active {
+            if let Some(c) = &mut self.coupled {
+                let (plain, _) = c.step(&self.encoding, positions, None, &mut self.step_out);
+                if !plain.is_finite() {
+                    return plain;
+                }
+                let (moved, fixed_point_residual) =
+                    self.anderson.step(positions, &self.step_out, &self.free);
+                return moved.max(fixed_point_residual);
+            }
+        }
         for v in 0..positions.len() {
             self.delta[v] = if self.fixed[v] {
                 DVec3::ZERO
@@ -315,6 +442,8 @@ impl MvcDeformer {
     pub fn heap_bytes(&self) -> usize {
         self.encoding.heap_bytes()
             + self.system.as_ref().map_or(0, |s| s.heap_bytes())
+            + self.coupled.as_ref().map_or(0, |c| c.heap_bytes())
+            + self.rest.len() * 24
             + self.delta.len() * 24
             + self.fixed.len() * 6
             + self.step_out.len() * 24
@@ -323,6 +452,15 @@ impl MvcDeformer {
 
     /// Number of stored values of the Cholesky factor (0 for the paper-style decoder).
     pub fn factor_len(&self) -> usize {
-        self.system.as_ref().map_or(0, |s| s.factor_len())
+        match (&self.coupled, self.coupled_active) {
+            (Some(c), true) => c.factor_len(),
+            _ => self.system.as_ref().map_or(0, |s| s.factor_len()),
+        }
+    }
+
+    /// Whether the fast decoder runs the coupled Gauss-Newton system (false: frozen
+    /// offsets, by option or after a failed coupled factorisation).
+    pub fn uses_coupled_system(&self) -> bool {
+        self.coupled_active
     }
 }
