@@ -22,28 +22,45 @@
 //! - [`DecoderKind::PaperIterative`]: the paper's loop: control vertices jump to their
 //!   targets, free vertices take `v_mv` from their neighbours (in place, Gauss-Seidel
 //!   order), repeated.
-//! - [`DecoderKind::FastGaussNewton`]: weights frozen, the normal offsets `s n` taken from
-//!   the current positions, the sparse least-squares system `min |L x - s n|^2` (rows of
-//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L` (faer,
-//!   `Par::Seq`); each Gauss-Newton step and each new frame only re-solves with a new
-//!   right-hand side. Two ways to share the sparse analysis ([`SymbolicReuse`]):
+//! - [`DecoderKind::FastGaussNewton`], by default with [`Linearisation::Coupled`]:
+//!   Gauss-Newton on `F(x) = x - v_mv(x) = 0` over the free vertices with the full
+//!   Jacobian, in which every normal offset `s n` turns and stretches with its ring (x, y
+//!   and z coupled: a `3F x 3F` system for `F` free vertices, `newton.rs`). The Jacobian
+//!   comes from forward differences of the decoding (each `v_mv` reads one ring), its
+//!   normal equations are factored once per control set with faer's sparse Cholesky
+//!   (`Par::Seq`), linearised at the rest shape, and reused as chord steps frame after
+//!   frame; a solve that needs more than `DecodeOptions::relinearise_after` steps (or a
+//!   caller, [`MvcDeformer::relinearise`]) refactors it at the current shape. The first
+//!   step of every solve is a predictor: the linear response of the current surface to
+//!   the control moves (`F` taken to first order in the moved controls), instead of a
+//!   step from a surface whose controls were torn away from their neighbours. Measured on
+//!   the MakeHuman body (`fitstation bench deform`): two steps from rest (targets moved
+//!   up to 24 mm) and two for a refit after 3 mm moves, where the frozen offsets needed
+//!   12 and 15.
+//! - The same decoder with [`Linearisation::FrozenOffsets`] (and always with weighted
+//!   constraints): weights frozen, the normal offsets `s n` taken from the current
+//!   positions, the sparse least-squares system `min |L x - s n|^2` (rows of the free
+//!   vertices, `L = I - W`) solved with a Cholesky factor of `L^T L`, one scalar factor
+//!   for x, y and z. Two ways to share its sparse analysis ([`SymbolicReuse`]):
 //!   eliminate the control vertices (smaller factor, analysis per control set, the
 //!   default: a template's control set stays while the targets move), or keep one
 //!   analysis of the full-size pattern for every control set (controls become identity
 //!   rows, their coupling moves to the right-hand side; `set_controls` is a numeric
 //!   refactor only).
 //!
-//! Why Anderson acceleration: with frozen normal offsets the step `x -> G(x)` ignores how
-//! the offsets turn and stretch with the surface. Where a thin part is held on one side
+//! Why Anderson acceleration (frozen offsets): the step `x -> G(x)` ignores how the
+//! offsets turn and stretch with the surface. Where a thin part is held on one side
 //! only (fingers, or a limb pinned along one line) that feedback has a gain above one
 //! and the plain iteration diverges (measured on the MakeHuman body: moves growing 2.5x
 //! per step at the fingers). The paper's local sweeps stay stable but need hundreds to
-//! tens of thousands of sweeps. The fast decoder therefore mixes its last steps
+//! tens of thousands of sweeps. The frozen-offset decoder therefore mixes its last steps
 //! (Anderson acceleration, `anderson.rs`); that converges in 12-15 steps on the body when
 //! hands, feet and head are held (method.md: they move rigidly) and in 45-70 when they
-//! are free (the fingers dominate).
-//! A true Newton step would need the 3N x 3N Jacobian of the normal offsets (x, y and z
-//! coupled), about nine times the factor: not done here.
+//! are free (the fingers dominate). The coupled system sees that feedback in its
+//! Jacobian; its chord steps are mixed the same way (a no-op when they converge in two).
+//! Cost of the coupled system: its factor holds about eleven times the values of the
+//! scalar one (2.9 M against 0.27 M on the body), and a solve with it is bound by memory
+//! bandwidth (about 5 ms on this machine when idle), which is what a step costs.
 //!
 //! Both decoders use hard constraints by default (control vertices eliminated), so they
 //! share the exact fixed point. With a finite `DecodeOptions::constraint_weight` the fast
@@ -131,7 +148,8 @@ pub enum Linearisation {
     FrozenOffsets,
 }
 
-/// Sharing of the fast decoder's symbolic Cholesky analysis.
+/// Sharing of the frozen-offset engine's symbolic Cholesky analysis (the coupled system
+/// is always analysed per control set).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum SymbolicReuse {
     /// Control vertices are eliminated from the unknowns: a smaller factor and faster
@@ -149,10 +167,10 @@ pub enum SymbolicReuse {
 pub const DEFAULT_MAX_MOVE_M: f64 = 1e-4;
 /// Default iteration cap.
 pub const DEFAULT_MAX_ITERATIONS: usize = 50;
-/// Default of [`DecodeOptions::relinearise_after`]: chord steps from a linearisation a
-/// few millimetres away contract by about ten per step, so a solve of more than this many
-/// steps means the shape has drifted from the linearisation point.
-pub const DEFAULT_RELINEARISE_AFTER: usize = 4;
+/// Default of [`DecodeOptions::relinearise_after`]: a predictor and a chord step suffice
+/// while the linearisation is a few centimetres from the shape (measured on the body), so
+/// a solve of more than this many steps means the shape has drifted from it.
+pub const DEFAULT_RELINEARISE_AFTER: usize = 3;
 
 impl Default for DecodeOptions {
     fn default() -> Self {
