@@ -329,7 +329,10 @@ impl MvcDeformer {
             self.relinearise(positions)?;
             report.relinearised = self.coupled_active;
         }
-        report.residual_m = self.residual(positions);
+        report.residual_m = match (&mut self.coupled, self.coupled_active) {
+            (Some(c), true) => c.residual_at(&self.encoding, positions),
+            _ => self.residual(positions),
+        };
         report.constraint_residual_m = self
             .controls
             .iter()

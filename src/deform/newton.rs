@@ -59,11 +59,17 @@ pub(crate) struct CoupledSystem {
     symbolic: SymbolicCholesky<usize>,
     factor: Vec<f64>,
     scratch: MemBuffer,
+    scratch_bytes: usize,
     factored: bool,
     /// Right-hand side / solution (3F), residuals per row, and a position scratch.
     rhs: Vec<f64>,
     residual: Vec<DVec3>,
     work: Vec<DVec3>,
+    /// `F` of the free rows at `cached_at` (the end of the last solve, or the last
+    /// linearisation point): a solve that starts there skips one evaluation.
+    cached_f: Vec<DVec3>,
+    cached_at: Vec<DVec3>,
+    cache_valid: bool,
     fd_step: f64,
 }
 
@@ -179,6 +185,7 @@ impl CoupledSystem {
             symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
             symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
         ]);
+        let scratch_bytes = req.unaligned_bytes_required();
         let scratch = MemBuffer::try_new(req)
             .map_err(|_| DeformError::Factorisation("out of memory for scratch".into()))?;
         Ok(CoupledSystem {
@@ -198,9 +205,13 @@ impl CoupledSystem {
             row_idx,
             symbolic,
             scratch,
+            scratch_bytes,
             factored: false,
             rhs: vec![0.0; dim],
             residual: vec![DVec3::ZERO; nf],
+            cached_f: vec![DVec3::ZERO; nf],
+            cached_at: Vec::new(),
+            cache_valid: false,
             work: Vec::new(),
             fd_step: FD_REL_STEP * mean_edge_m.max(f64::MIN_POSITIVE),
         })
@@ -219,6 +230,7 @@ impl CoupledSystem {
         positions: &[DVec3],
     ) -> Result<(), DeformError> {
         self.factored = false;
+        self.cache_valid = false;
         self.work.clear();
         self.work.extend_from_slice(positions);
         let h = self.fd_step;
@@ -254,6 +266,10 @@ impl CoupledSystem {
                 let (m, b) = block(v, self.fix_vtx[j] as usize, base);
                 self.fix_jac[j] = m;
                 base = Some(b);
+            }
+            // The vertex's own entry always comes first, so its decode is known here.
+            if let Some(b) = base {
+                self.cached_f[r] = positions[v] - b;
             }
         }
         self.values.iter_mut().for_each(|x| *x = 0.0);
@@ -315,6 +331,9 @@ impl CoupledSystem {
             )
             .map_err(|e| DeformError::Factorisation(format!("coupled numeric: {e:?}")))?;
         self.factored = true;
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache_valid = true;
         Ok(())
     }
 
@@ -334,8 +353,14 @@ impl CoupledSystem {
         out: &mut [DVec3],
     ) -> (f64, f64) {
         let mut fmax = 0.0f64;
+        let cached = self.cache_valid && self.cached_at.as_slice() == positions;
+        self.cache_valid = false;
         for (r, &v) in self.free.iter().enumerate() {
-            let mut f = positions[v as usize] - enc.decode_vertex(v as usize, positions);
+            let mut f = if cached {
+                self.cached_f[r]
+            } else {
+                positions[v as usize] - enc.decode_vertex(v as usize, positions)
+            };
             fmax = fmax.max(f.length_squared());
             if let Some(jump) = jump {
                 for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
@@ -385,6 +410,21 @@ impl CoupledSystem {
         (max_move.sqrt(), fmax.sqrt())
     }
 
+    /// Largest `|F_v|` over the free vertices at `positions`, metres; remembered for a
+    /// solve that starts from there (the next frame's warm start).
+    pub(crate) fn residual_at(&mut self, enc: &MeanValueEncoding, positions: &[DVec3]) -> f64 {
+        let mut fmax = 0.0f64;
+        for (r, &v) in self.free.iter().enumerate() {
+            let f = positions[v as usize] - enc.decode_vertex(v as usize, positions);
+            fmax = fmax.max(f.length_squared());
+            self.cached_f[r] = f;
+        }
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache_valid = true;
+        fmax.sqrt()
+    }
+
     /// Whether `fixed` is the fixed set this system was built for.
     pub(crate) fn matches(&self, fixed: &[bool]) -> bool {
         fixed.len() == self.reduced_of.len()
@@ -406,6 +446,9 @@ impl CoupledSystem {
             + self.values.len() * 8
             + self.rhs.len() * 8
             + self.residual.len() * 24
+            + self.cached_f.len() * 24
+            + self.cached_at.len() * 24
+            + self.scratch_bytes
             + self.work.len() * 24
     }
 
