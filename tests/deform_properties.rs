@@ -737,3 +737,22 @@ fn a_slow_solve_relinearises_only_when_allowed() {
         assert!(r.converged, "{r:?}");
     }
 }
+
+#[test]
+fn every_vertex_a_control_is_solved_exactly() {
+    let m = shapes::uv_sphere(0.3, 8, 16);
+    let c: Vec<u32> = (0..m.vertex_count() as u32).collect();
+    let t: Vec<DVec3> = m.positions.iter().map(|p| *p * 1.1).collect();
+    for lin in [Linearisation::Coupled, Linearisation::FrozenOffsets] {
+        let opts = DecodeOptions {
+            linearisation: lin,
+            ..Default::default()
+        };
+        let mut d = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+        d.set_controls(&c).unwrap();
+        let mut pos = m.positions.clone();
+        let r = d.solve(&t, &mut pos).unwrap();
+        assert!(r.converged, "{lin:?}: {r:?}");
+        assert!(max_distance(&pos, &t) == 0.0, "{lin:?}");
+    }
+}

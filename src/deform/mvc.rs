@@ -179,7 +179,8 @@ impl MvcDeformer {
         }
         let coupled_wanted = self.kind == DecoderKind::FastGaussNewton
             && !soft
-            && self.opts.linearisation == Linearisation::Coupled;
+            && self.opts.linearisation == Linearisation::Coupled
+            && self.fixed.iter().any(|&f| !f);
         self.coupled_active = false;
         self.engine_factored = false;
         if coupled_wanted {
