@@ -6,7 +6,10 @@
 //! mesh (slices one mean edge length thick in y; in each, the vertices of minimum and
 //! maximum x and z), targets are those vertices moved by a smooth field (the torso
 //! widened by [`TORSO_WIDENING`] with a raised-cosine profile in height), and the warm
-//! refit moves every target by up to [`REFIT_NUDGE_M`] more.
+//! refit moves every target by up to [`REFIT_NUDGE_M`] more. The fast decoder's refit is
+//! timed three ways: with its rest linearisation, after re-linearising at the first
+//! frame's result (timed on its own), and as a frame sequence from the previous result
+//! (the live station). Both decoders stop at the same tolerance (`--tol-m`).
 
 use super::{DecodeOptions, DecoderKind, LaplacianDeformer, MeanValueEncoding, MvcDeformer};
 use crate::mesh::io::{read_mesh, read_obj, write_obj};
