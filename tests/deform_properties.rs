@@ -587,3 +587,172 @@ fn linear_blend_with_identities_is_the_identity_and_follows_a_rigid_motion() {
         Err(SkeletonError::PoseCount { .. })
     ));
 }
+
+#[test]
+fn both_symbolic_strategies_give_the_same_decode() {
+    for (name, m) in small_meshes() {
+        if name == "bumpy patch" {
+            continue;
+        }
+        let (c, t) = small_problem(&m);
+        let solve = |symbolic: SymbolicReuse| {
+            let opts = DecodeOptions {
+                symbolic,
+                max_move_m: 1e-8,
+                ..Default::default()
+            };
+            let mut d = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+            d.set_controls(&c).unwrap();
+            let mut pos = m.positions.clone();
+            let r = d.solve(&t, &mut pos).unwrap();
+            assert!(r.converged, "{name} {symbolic:?}: {r:?}");
+            pos
+        };
+        let a = solve(SymbolicReuse::PerControlSet);
+        let b = solve(SymbolicReuse::AcrossControlSets);
+        let diff = a
+            .iter()
+            .zip(&b)
+            .map(|(x, y)| (*x - *y).length())
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-7, "{name}: {diff}");
+    }
+}
+
+fn max_distance(a: &[DVec3], b: &[DVec3]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (*x - *y).length())
+        .fold(0.0, f64::max)
+}
+
+/// The targets of `t` moved by a smooth field of a few millimetres (a warm refit).
+fn nudged(t: &[DVec3]) -> Vec<DVec3> {
+    t.iter()
+        .map(|p| *p + 3e-3 * DVec3::new((9.0 * p.y).sin(), 0.3, (7.0 * p.y).cos()))
+        .collect()
+}
+
+#[test]
+fn coupled_and_frozen_linearisations_reach_the_same_fixed_point() {
+    let mut cases: Vec<(&str, TriMesh, Vec<u32>, Vec<DVec3>)> = small_meshes()
+        .into_iter()
+        .filter(|(name, _)| *name != "bumpy patch")
+        .map(|(name, m)| {
+            let (c, t) = small_problem(&m);
+            (name, m, c, t)
+        })
+        .collect();
+    if let Some(m) = template() {
+        let args = bench_args();
+        let parts = fitstation::deform::bench::rigid_parts(&args).unwrap_or_default();
+        let p = problem(&m, &parts);
+        cases.push(("template", m, p.controls, p.targets));
+    }
+    for (name, m, c, t) in cases {
+        let mut out = Vec::new();
+        for lin in [Linearisation::Coupled, Linearisation::FrozenOffsets] {
+            let opts = DecodeOptions {
+                linearisation: lin,
+                max_move_m: 1e-8,
+                max_iterations: 400,
+                ..Default::default()
+            };
+            let mut d = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+            d.set_controls(&c).unwrap();
+            assert_eq!(
+                d.uses_coupled_system(),
+                lin == Linearisation::Coupled,
+                "{name}"
+            );
+            let mut pos = m.positions.clone();
+            let r = d.solve(&t, &mut pos).unwrap();
+            assert!(r.converged, "{name} {lin:?}: {r:?}");
+            out.push(pos);
+        }
+        assert!(
+            max_distance(&m.positions, &out[0]) > 1e-3,
+            "{name}: the problem moves nothing"
+        );
+        let diff = max_distance(&out[0], &out[1]);
+        assert!(diff < 1e-5, "{name}: linearisations differ by {diff} m");
+    }
+}
+
+#[test]
+fn relinearising_changes_the_steps_not_the_fixed_point() {
+    for (name, m) in small_meshes() {
+        if name == "bumpy patch" {
+            continue;
+        }
+        let (c, t) = small_problem(&m);
+        let t2 = nudged(&t);
+        let opts = DecodeOptions {
+            max_move_m: 1e-8,
+            relinearise_after: usize::MAX,
+            ..Default::default()
+        };
+        let mut d = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+        d.set_controls(&c).unwrap();
+        let mut first = m.positions.clone();
+        let r = d.solve(&t, &mut first).unwrap();
+        assert!(r.converged && !r.relinearised, "{name}: {r:?}");
+        // Warm refit with the rest linearisation, then with one at the first result.
+        let mut stale = first.clone();
+        let rs = d.solve(&t2, &mut stale).unwrap();
+        d.relinearise(&first).unwrap();
+        let mut fresh = first.clone();
+        let rf = d.solve(&t2, &mut fresh).unwrap();
+        assert!(rs.converged && rf.converged, "{name}: {rs:?} {rf:?}");
+        let diff = max_distance(&stale, &fresh);
+        assert!(diff < 1e-6, "{name}: refits differ by {diff} m");
+        assert!(
+            max_distance(&first, &fresh) > 1e-3,
+            "{name}: the refit moves nothing"
+        );
+        // Solving again from the solution is a fixed point: one predictor step that
+        // moves nothing measurable, then a certifying step.
+        let mut again = fresh.clone();
+        let ra = d.solve(&t2, &mut again).unwrap();
+        assert!(ra.converged, "{name}: {ra:?}");
+        assert!(max_distance(&again, &fresh) < 1e-7, "{name}: {ra:?}");
+        assert!(rf.residual_m < 1e-6, "{name}: {rf:?}");
+    }
+}
+
+#[test]
+fn a_slow_solve_relinearises_only_when_allowed() {
+    let m = shapes::elliptic_cylinder(0.15, 0.1, 0.6, 16, 24);
+    let (c, t) = small_problem(&m);
+    for (after, expect) in [(0usize, true), (usize::MAX, false)] {
+        let opts = DecodeOptions {
+            relinearise_after: after,
+            ..Default::default()
+        };
+        let mut d = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+        d.set_controls(&c).unwrap();
+        let mut pos = m.positions.clone();
+        let r = d.solve(&t, &mut pos).unwrap();
+        assert_eq!(r.relinearised, expect, "{r:?}");
+        assert!(r.converged, "{r:?}");
+    }
+}
+
+#[test]
+fn every_vertex_a_control_is_solved_exactly() {
+    let m = shapes::uv_sphere(0.3, 8, 16);
+    let c: Vec<u32> = (0..m.vertex_count() as u32).collect();
+    let t: Vec<DVec3> = m.positions.iter().map(|p| *p * 1.1).collect();
+    for lin in [Linearisation::Coupled, Linearisation::FrozenOffsets] {
+        let opts = DecodeOptions {
+            linearisation: lin,
+            ..Default::default()
+        };
+        let mut d = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, opts).unwrap();
+        d.set_controls(&c).unwrap();
+        let mut pos = m.positions.clone();
+        let r = d.solve(&t, &mut pos).unwrap();
+        assert!(r.converged, "{lin:?}: {r:?}");
+        assert!(max_distance(&pos, &t) == 0.0, "{lin:?}");
+    }
+}

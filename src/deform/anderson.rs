@@ -59,13 +59,31 @@ impl Anderson {
         self.has_prev = false;
     }
 
-    /// Given the iterate `x` and `g = G(x)`, writes the mixed next iterate into `x`.
+    /// Sizes the history for `n` free vertices and forgets it.
+    pub(crate) fn resize(&mut self, n: usize) {
+        self.n = n;
+        self.dg.resize(ANDERSON_DEPTH * n, DVec3::ZERO);
+        self.df.resize(ANDERSON_DEPTH * n, DVec3::ZERO);
+        self.g_prev.resize(n, DVec3::ZERO);
+        self.f_prev.resize(n, DVec3::ZERO);
+        self.reset();
+    }
+
+    /// Given the iterate `x` and `g = G(x)`, writes the mixed next iterate into `x`; only
+    /// the vertices listed in `free` take part (the others are fixed, equal in both).
     /// Returns (largest move, largest fixed-point residual `|G(x) - x|`).
-    pub(crate) fn step(&mut self, x: &mut [DVec3], g: &[DVec3]) -> (f64, f64) {
+    pub(crate) fn step(
+        &mut self,
+        x_all: &mut [DVec3],
+        g_all: &[DVec3],
+        free: &[u32],
+    ) -> (f64, f64) {
         let n = self.n;
+        debug_assert_eq!(n, free.len());
+        let x = |k: usize, xs: &[DVec3]| xs[free[k] as usize];
         let mut fmax = 0.0f64;
         for v in 0..n {
-            fmax = fmax.max((g[v] - x[v]).length_squared());
+            fmax = fmax.max((g_all[free[v] as usize] - x(v, x_all)).length_squared());
         }
         let fmax = fmax.sqrt();
         if fmax > RESTART_GROWTH * self.last_residual {
@@ -77,9 +95,9 @@ impl Anderson {
         if self.has_prev {
             let col = self.head * n;
             for v in 0..n {
-                let f = g[v] - x[v];
+                let f = g_all[free[v] as usize] - x(v, x_all);
                 self.df[col + v] = f - self.f_prev[v];
-                self.dg[col + v] = g[v] - self.g_prev[v];
+                self.dg[col + v] = g_all[free[v] as usize] - self.g_prev[v];
             }
             let slot = self.head;
             self.head = (self.head + 1) % ANDERSON_DEPTH;
@@ -93,9 +111,9 @@ impl Anderson {
             }
         }
         for v in 0..n {
-            let f = g[v] - x[v];
+            let f = g_all[free[v] as usize] - x(v, x_all);
             self.f_prev[v] = f;
-            self.g_prev[v] = g[v];
+            self.g_prev[v] = g_all[free[v] as usize];
         }
         self.has_prev = true;
         let k = self.count;
@@ -105,18 +123,19 @@ impl Anderson {
         }
         let mut max_move = 0.0f64;
         for v in 0..n {
-            let mut next = g[v];
+            let gv = g_all[free[v] as usize];
+            let mut next = gv;
             for (j, gj) in gamma.iter().enumerate().take(k) {
                 next -= *gj * self.dg[j * n + v];
             }
             if !next.is_finite() {
-                next = g[v];
+                next = gv;
             }
-            let mv = (next - x[v]).length_squared();
+            let mv = (next - x(v, x_all)).length_squared();
             if !(mv <= max_move) {
                 max_move = mv;
             }
-            x[v] = next;
+            x_all[free[v] as usize] = next;
         }
         (max_move.sqrt(), fmax)
     }

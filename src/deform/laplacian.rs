@@ -201,6 +201,7 @@ impl LaplacianDeformer {
             residual_m: residual,
             constraint_residual_m,
             converged: true,
+            relinearised: false,
         })
     }
 

@@ -22,26 +22,45 @@
 //! - [`DecoderKind::PaperIterative`]: the paper's loop: control vertices jump to their
 //!   targets, free vertices take `v_mv` from their neighbours (in place, Gauss-Seidel
 //!   order), repeated.
-//! - [`DecoderKind::FastGaussNewton`]: weights frozen, the normal offsets `s n` taken from
-//!   the current positions, the sparse least-squares system `min |L x - s n|^2` (rows of
-//!   the free vertices, `L = I - W`) solved with a Cholesky factor of `L^T L`. The
-//!   symbolic analysis is done once per mesh on the pattern with every row present;
-//!   `set_controls` only refactors numerically (control vertices become identity rows,
-//!   their coupling moves to the right-hand side), so changing the control set keeps the
-//!   analysis; each Gauss-Newton step and each new frame only re-solves with a new
-//!   right-hand side (faer, `Par::Seq`).
+//! - [`DecoderKind::FastGaussNewton`], by default with [`Linearisation::Coupled`]:
+//!   Gauss-Newton on `F(x) = x - v_mv(x) = 0` over the free vertices with the full
+//!   Jacobian, in which every normal offset `s n` turns and stretches with its ring (x, y
+//!   and z coupled: a `3F x 3F` system for `F` free vertices, `newton.rs`). The Jacobian
+//!   comes from forward differences of the decoding (each `v_mv` reads one ring), its
+//!   normal equations are factored once per control set with faer's sparse Cholesky
+//!   (`Par::Seq`), linearised at the rest shape, and reused as chord steps frame after
+//!   frame; a solve that needs more than `DecodeOptions::relinearise_after` steps (or a
+//!   caller, [`MvcDeformer::relinearise`]) refactors it at the current shape. The first
+//!   step of every solve is a predictor: the linear response of the current surface to
+//!   the control moves (`F` taken to first order in the moved controls), instead of a
+//!   step from a surface whose controls were torn away from their neighbours. Measured on
+//!   the MakeHuman body (`fitstation bench deform`): two steps from rest (targets moved
+//!   up to 24 mm) and two for a refit after 3 mm moves, where the frozen offsets needed
+//!   12 and 15.
+//! - The same decoder with [`Linearisation::FrozenOffsets`] (and always with weighted
+//!   constraints): weights frozen, the normal offsets `s n` taken from the current
+//!   positions, the sparse least-squares system `min |L x - s n|^2` (rows of the free
+//!   vertices, `L = I - W`) solved with a Cholesky factor of `L^T L`, one scalar factor
+//!   for x, y and z. Two ways to share its sparse analysis ([`SymbolicReuse`]):
+//!   eliminate the control vertices (smaller factor, analysis per control set, the
+//!   default: a template's control set stays while the targets move), or keep one
+//!   analysis of the full-size pattern for every control set (controls become identity
+//!   rows, their coupling moves to the right-hand side; `set_controls` is a numeric
+//!   refactor only).
 //!
-//! Why Anderson acceleration: with frozen normal offsets the step `x -> G(x)` ignores how
-//! the offsets turn and stretch with the surface. Where a thin part is held on one side
+//! Why Anderson acceleration (frozen offsets): the step `x -> G(x)` ignores how the
+//! offsets turn and stretch with the surface. Where a thin part is held on one side
 //! only (fingers, or a limb pinned along one line) that feedback has a gain above one
 //! and the plain iteration diverges (measured on the MakeHuman body: moves growing 2.5x
 //! per step at the fingers). The paper's local sweeps stay stable but need hundreds to
-//! tens of thousands of sweeps. The fast decoder therefore mixes its last steps
+//! tens of thousands of sweeps. The frozen-offset decoder therefore mixes its last steps
 //! (Anderson acceleration, `anderson.rs`); that converges in 12-15 steps on the body when
 //! hands, feet and head are held (method.md: they move rigidly) and in 45-70 when they
-//! are free (the fingers dominate).
-//! A true Newton step would need the 3N x 3N Jacobian of the normal offsets (x, y and z
-//! coupled), about nine times the factor: not done here.
+//! are free (the fingers dominate). The coupled system sees that feedback in its
+//! Jacobian; its chord steps are mixed the same way (a no-op when they converge in two).
+//! Cost of the coupled system: its factor holds about eleven times the values of the
+//! scalar one (2.9 M against 0.27 M on the body), and a solve with it is bound by memory
+//! bandwidth (about 5 ms on this machine when idle), which is what a step costs.
 //!
 //! Both decoders use hard constraints by default (control vertices eliminated), so they
 //! share the exact fixed point. With a finite `DecodeOptions::constraint_weight` the fast
@@ -67,6 +86,7 @@ mod anderson;
 mod encoding;
 mod laplacian;
 mod mvc;
+mod newton;
 mod skinning;
 mod solver;
 
@@ -102,12 +122,55 @@ pub struct DecodeOptions {
     /// are eliminated from the unknowns, like the paper-style loop does. The paper-style
     /// loop always uses hard constraints.
     pub constraint_weight: f64,
+    /// How the fast decoder's sparse analysis is shared (see [`SymbolicReuse`]).
+    pub symbolic: SymbolicReuse,
+    /// How the fast decoder linearises the normal offsets (see [`Linearisation`]).
+    pub linearisation: Linearisation,
+    /// Coupled linearisation only: a solve that needs more steps than this re-linearises
+    /// at its result (a numeric refactor; the analysis is kept), so the next frames start
+    /// from an up-to-date model. `usize::MAX` never does. Default
+    /// [`DEFAULT_RELINEARISE_AFTER`].
+    pub relinearise_after: usize,
+}
+
+/// How the fast decoder models the normal offsets `s n` of the decoding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Linearisation {
+    /// Gauss-Newton on the coupled system: the Jacobian includes how each offset turns and
+    /// stretches with its ring (x, y, z coupled, one `3F x 3F` factor for `F` free
+    /// vertices), linearised at the rest shape when the control set is given and reused
+    /// (chord steps) until a solve needs more than `relinearise_after` steps. Hard
+    /// constraints only (with weighted ones the frozen offsets are used). The default.
+    #[default]
+    Coupled,
+    /// Offsets frozen at the current positions, one scalar factor for x, y and z, steps
+    /// mixed by Anderson acceleration.
+    FrozenOffsets,
+}
+
+/// Sharing of the frozen-offset engine's symbolic Cholesky analysis (the coupled system
+/// is always analysed per control set).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum SymbolicReuse {
+    /// Control vertices are eliminated from the unknowns: a smaller factor and faster
+    /// solves; the analysis is redone only when the control set changes (it does not
+    /// from frame to frame: only the targets move). The default.
+    #[default]
+    PerControlSet,
+    /// One analysis of the full-size system per mesh, kept for every control set
+    /// (controls become identity rows): `set_controls` is a numeric refactor only, each
+    /// solve pays for the full-size factor. Always used with weighted constraints.
+    AcrossControlSets,
 }
 
 /// Default convergence tolerance, metres (0.1 mm).
 pub const DEFAULT_MAX_MOVE_M: f64 = 1e-4;
 /// Default iteration cap.
 pub const DEFAULT_MAX_ITERATIONS: usize = 50;
+/// Default of [`DecodeOptions::relinearise_after`]: a predictor and a chord step suffice
+/// while the linearisation is a few centimetres from the shape (measured on the body), so
+/// a solve of more than this many steps means the shape has drifted from it.
+pub const DEFAULT_RELINEARISE_AFTER: usize = 3;
 
 impl Default for DecodeOptions {
     fn default() -> Self {
@@ -115,6 +178,9 @@ impl Default for DecodeOptions {
             max_move_m: DEFAULT_MAX_MOVE_M,
             max_iterations: DEFAULT_MAX_ITERATIONS,
             constraint_weight: f64::INFINITY,
+            symbolic: SymbolicReuse::default(),
+            linearisation: Linearisation::default(),
+            relinearise_after: DEFAULT_RELINEARISE_AFTER,
         }
     }
 }
@@ -134,6 +200,8 @@ pub struct DecodeReport {
     pub constraint_residual_m: f64,
     /// Whether the convergence test passed before the iteration cap.
     pub converged: bool,
+    /// Whether the fast decoder re-linearised its coupled system at the end of this solve.
+    pub relinearised: bool,
 }
 
 /// Errors of the deformers.

@@ -5,13 +5,14 @@
 
 use super::anderson::Anderson;
 use super::encoding::MeanValueEncoding;
+use super::newton::CoupledSystem;
 use super::solver::{
-    component_anchor_candidates, components, fixed_with_anchors, Constraints, NormalEquations,
-    RowSystem,
+    component_anchor_candidates, components, fixed_with_anchors, Constraints, Engine,
+    NormalEquations, ReducedSystem, RowSystem,
 };
 use super::{
     check_solve_inputs, control_mask, ConvergenceMonitor, DecodeOptions, DecodeReport, DecoderKind,
-    DeformError,
+    DeformError, Linearisation, SymbolicReuse,
 };
 use crate::mesh::TriMesh;
 use glam::DVec3;
@@ -29,12 +30,26 @@ pub struct MvcDeformer {
     fixed: Vec<bool>,
     anchors: Vec<u32>,
     /// Fast solver only.
-    system: Option<NormalEquations>,
+    system: Option<Engine>,
     /// Per-vertex right-hand side (normal offsets), scratch.
     delta: Vec<DVec3>,
+    /// Vertices the solve moves (the free ones; all with weighted constraints), for the
+    /// acceleration.
+    free: Vec<u32>,
+    /// The engine has not been factored yet (no control set given so far).
+    needs_factor: bool,
     /// Fast solver: the plain step's result, and the acceleration history.
     step_out: Vec<DVec3>,
     anderson: Anderson,
+    /// Fast solver, coupled linearisation: the `3F x 3F` Gauss-Newton system of the
+    /// current fixed set, and whether it is in use (else the frozen-offset engine).
+    coupled: Option<CoupledSystem>,
+    coupled_active: bool,
+    /// The scalar engine has been factored for the current fixed set.
+    engine_factored: bool,
+    /// Rest positions (the first linearisation point) and mean edge length, metres.
+    rest: Vec<DVec3>,
+    mean_edge_m: f64,
 }
 
 impl MvcDeformer {
@@ -83,10 +98,16 @@ impl MvcDeformer {
         let component = components(encoding.rings());
         let anchor_candidates = component_anchor_candidates(&component, &rest.positions);
         let system = match kind {
-            DecoderKind::FastGaussNewton => Some(NormalEquations::new(RowSystem::from_rings(
-                encoding.rings(),
-                |v| encoding.weights(v),
-            ))?),
+            DecoderKind::FastGaussNewton => {
+                let rows = RowSystem::from_rings(encoding.rings(), |v| encoding.weights(v));
+                let hard = !opts.constraint_weight.is_finite();
+                Some(match opts.symbolic {
+                    SymbolicReuse::PerControlSet if hard => {
+                        Engine::Reduced(ReducedSystem::new(rows))
+                    }
+                    _ => Engine::Full(NormalEquations::new(rows)?),
+                })
+            }
             DecoderKind::PaperIterative => None,
         };
         let mut d = MvcDeformer {
@@ -101,6 +122,8 @@ impl MvcDeformer {
             anchors: Vec::new(),
             system,
             delta: vec![DVec3::ZERO; n],
+            free: Vec::new(),
+            needs_factor: false,
             step_out: vec![
                 DVec3::ZERO;
                 if kind == DecoderKind::FastGaussNewton {
@@ -114,14 +137,24 @@ impl MvcDeformer {
             } else {
                 0
             }),
+            coupled: None,
+            coupled_active: false,
+            engine_factored: false,
+            rest: rest.positions.clone(),
+            mean_edge_m: rest.mean_edge_length(),
         };
-        d.set_controls(&[])?;
+        match d.system {
+            // Analysed when the first control set arrives (or at the first solve).
+            Some(Engine::Reduced(_)) => d.needs_factor = true,
+            _ => d.set_controls(&[])?,
+        }
         Ok(d)
     }
 
-    /// Sets or replaces the control vertices (indices). For the fast decoder this
-    /// refactors numerically; the symbolic analysis is kept (its pattern does not depend
-    /// on the control set).
+    /// Sets or replaces the control vertices (indices). For the fast decoder with the
+    /// coupled linearisation this analyses and factors the coupled system of the new
+    /// fixed set, linearised at the rest shape (nothing is redone for the same set); with
+    /// frozen offsets it refactors the scalar system.
     ///
     /// # Errors
     /// An index out of range or listed twice; a failed factorisation.
@@ -137,7 +170,47 @@ impl MvcDeformer {
             &mut self.fixed,
             &mut self.anchors,
         );
-        self.anderson.reset();
+        let soft = self.opts.constraint_weight.is_finite();
+        self.free.clear();
+        self.free
+            .extend((0..self.fixed.len() as u32).filter(|&v| soft || !self.fixed[v as usize]));
+        if self.kind == DecoderKind::FastGaussNewton {
+            self.anderson.resize(self.free.len());
+        }
+        let coupled_wanted = self.kind == DecoderKind::FastGaussNewton
+            && !soft
+            && self.opts.linearisation == Linearisation::Coupled
+            && self.fixed.iter().any(|&f| !f);
+        self.coupled_active = false;
+        self.engine_factored = false;
+        if coupled_wanted {
+            let reuse = self
+                .coupled
+                .as_ref()
+                .is_some_and(|c| c.is_factored() && c.matches(&self.fixed));
+            if reuse {
+                self.coupled_active = true;
+            } else {
+                self.coupled = None;
+                // A failed coupled factorisation falls back to the frozen offsets.
+                if let Ok(mut c) = CoupledSystem::new(&self.encoding, &self.fixed, self.mean_edge_m)
+                {
+                    if c.linearise(&self.encoding, &self.rest).is_ok() {
+                        self.coupled = Some(c);
+                        self.coupled_active = true;
+                    }
+                }
+            }
+        }
+        if !self.coupled_active {
+            self.factor_engine()?;
+        }
+        self.needs_factor = false;
+        Ok(())
+    }
+
+    /// Factors the scalar (frozen-offset) engine for the current fixed set.
+    fn factor_engine(&mut self) -> Result<(), DeformError> {
         if let Some(sys) = &mut self.system {
             let mode = if self.opts.constraint_weight.is_finite() {
                 Constraints::Weighted(self.opts.constraint_weight)
@@ -145,6 +218,39 @@ impl MvcDeformer {
                 Constraints::Hard
             };
             sys.factor(&self.fixed, mode)?;
+        }
+        self.engine_factored = true;
+        Ok(())
+    }
+
+    /// Re-linearises the coupled system at `positions` (controls at their targets, e.g.
+    /// the result of the last solve) and refactors it numerically; the next solves take
+    /// chord steps from there. A no-op for the other decoders. If the factorisation
+    /// fails the deformer falls back to the frozen offsets.
+    ///
+    /// # Errors
+    /// Wrong position count; a failed fallback factorisation.
+    pub fn relinearise(&mut self, positions: &[DVec3]) -> Result<(), DeformError> {
+        let n = self.encoding.vertex_count();
+        if positions.len() != n {
+            return Err(DeformError::PositionCount {
+                got: positions.len(),
+                expected: n,
+            });
+        }
+        if !self.coupled_active {
+            return Ok(());
+        }
+        let ok = match &mut self.coupled {
+            Some(c) => c.linearise(&self.encoding, positions).is_ok(),
+            None => false,
+        };
+        if !ok {
+            self.coupled = None;
+            self.coupled_active = false;
+            if !self.engine_factored {
+                self.factor_engine()?;
+            }
         }
         Ok(())
     }
@@ -161,9 +267,8 @@ impl MvcDeformer {
     ) -> Result<DecodeReport, DeformError> {
         let n = self.encoding.vertex_count();
         check_solve_inputs(targets, self.controls.len(), positions.len(), n)?;
-        // Control vertices jump to their targets (both decoders start there).
-        for (&c, t) in self.controls.iter().zip(targets) {
-            positions[c as usize] = *t;
+        if self.needs_factor {
+            self.set_controls(&[])?;
         }
         let mut monitor = ConvergenceMonitor::new(self.opts.max_move_m);
         let mut report = DecodeReport::default();
@@ -171,7 +276,42 @@ impl MvcDeformer {
         // saved a few steps on the body with rigid extremities but tripled the refit
         // with free ones (measured), so they are not kept.
         self.anderson.reset();
-        for it in 0..self.opts.max_iterations {
+        let mut first = 0;
+        if self.coupled_active && self.opts.max_iterations > 0 {
+            // Predictor: the linear response of the current surface to the control moves
+            // (see `CoupledSystem::step`), then chord steps.
+            if let Some(c) = &mut self.coupled {
+                self.delta.iter_mut().for_each(|d| *d = DVec3::ZERO);
+                for (&v, t) in self.controls.iter().zip(targets) {
+                    self.delta[v as usize] = *t - positions[v as usize];
+                }
+                let (moved, _) = c.step(
+                    &self.encoding,
+                    positions,
+                    Some(&self.delta),
+                    &mut self.step_out,
+                );
+                positions.copy_from_slice(&self.step_out);
+                for (&v, t) in self.controls.iter().zip(targets) {
+                    positions[v as usize] = *t;
+                }
+                report.iterations = 1;
+                report.max_move_m = moved;
+                if !moved.is_finite() {
+                    return Err(DeformError::Diverged(1));
+                }
+                report.converged = monitor.update(moved);
+                first = 1;
+            }
+        }
+        // Control vertices jump to their targets (both decoders start there).
+        for (&c, t) in self.controls.iter().zip(targets) {
+            positions[c as usize] = *t;
+        }
+        for it in first..self.opts.max_iterations {
+            if report.converged {
+                break;
+            }
             let max_move = match self.kind {
                 DecoderKind::PaperIterative => self.paper_sweep(positions),
                 DecoderKind::FastGaussNewton => self.gauss_newton_step(targets, positions),
@@ -186,7 +326,14 @@ impl MvcDeformer {
                 break;
             }
         }
-        report.residual_m = self.residual(positions);
+        if self.coupled_active && report.iterations > self.opts.relinearise_after {
+            self.relinearise(positions)?;
+            report.relinearised = self.coupled_active;
+        }
+        report.residual_m = match (&mut self.coupled, self.coupled_active) {
+            (Some(c), true) => c.residual_at(&self.encoding, positions),
+            _ => self.residual(positions),
+        };
         report.constraint_residual_m = self
             .controls
             .iter()
@@ -219,6 +366,17 @@ impl MvcDeformer {
     /// method.md section 3), mixed with the previous steps by Anderson acceleration.
     /// Returns the larger of the move and the plain step's length.
     fn gauss_newton_step(&mut self, targets: &[DVec3], positions: &mut [DVec3]) -> f64 {
+        if self.coupled_active {
+            if let Some(c) = &mut self.coupled {
+                let (plain, _) = c.step(&self.encoding, positions, None, &mut self.step_out);
+                if !plain.is_finite() {
+                    return plain;
+                }
+                let (moved, fixed_point_residual) =
+                    self.anderson.step(positions, &self.step_out, &self.free);
+                return moved.max(fixed_point_residual);
+            }
+        }
         for v in 0..positions.len() {
             self.delta[v] = if self.fixed[v] {
                 DVec3::ZERO
@@ -229,7 +387,7 @@ impl MvcDeformer {
         let Some(sys) = &mut self.system else {
             return f64::NAN;
         };
-        if sys.mode != Constraints::Hard {
+        if sys.is_soft() {
             // Weighted constraints read their targets from the positions.
             for (&c, t) in self.controls.iter().zip(targets) {
                 positions[c as usize] = *t;
@@ -240,7 +398,8 @@ impl MvcDeformer {
         if !plain.is_finite() {
             return plain;
         }
-        let (moved, fixed_point_residual) = self.anderson.step(positions, &self.step_out);
+        let (moved, fixed_point_residual) =
+            self.anderson.step(positions, &self.step_out, &self.free);
         moved.max(fixed_point_residual)
     }
 
@@ -287,6 +446,8 @@ impl MvcDeformer {
     pub fn heap_bytes(&self) -> usize {
         self.encoding.heap_bytes()
             + self.system.as_ref().map_or(0, |s| s.heap_bytes())
+            + self.coupled.as_ref().map_or(0, |c| c.heap_bytes())
+            + self.rest.len() * 24
             + self.delta.len() * 24
             + self.fixed.len() * 6
             + self.step_out.len() * 24
@@ -295,6 +456,15 @@ impl MvcDeformer {
 
     /// Number of stored values of the Cholesky factor (0 for the paper-style decoder).
     pub fn factor_len(&self) -> usize {
-        self.system.as_ref().map_or(0, |s| s.factor_len())
+        match (&self.coupled, self.coupled_active) {
+            (Some(c), true) => c.factor_len(),
+            _ => self.system.as_ref().map_or(0, |s| s.factor_len()),
+        }
+    }
+
+    /// Whether the fast decoder runs the coupled Gauss-Newton system (false: frozen
+    /// offsets, by option or after a failed coupled factorisation).
+    pub fn uses_coupled_system(&self) -> bool {
+        self.coupled_active
     }
 }

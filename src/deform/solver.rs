@@ -415,3 +415,143 @@ pub(crate) fn fixed_with_anchors(
         }
     }
 }
+
+/// The same least squares with the fixed vertices removed from the unknowns (hard
+/// constraints only): smaller factor, faster solves, but the symbolic analysis is redone
+/// whenever the set of fixed vertices changes (a template's control set usually does
+/// not change from frame to frame, only the targets do).
+pub(crate) struct ReducedSystem {
+    full_rows: RowSystem,
+    fixed_mask: Vec<bool>,
+    free: Vec<u32>,
+    eq: Option<NormalEquations>,
+    delta_r: Vec<DVec3>,
+    pos_r: Vec<DVec3>,
+}
+
+impl ReducedSystem {
+    pub(crate) fn new(full_rows: RowSystem) -> Self {
+        ReducedSystem {
+            full_rows,
+            fixed_mask: Vec::new(),
+            free: Vec::new(),
+            eq: None,
+            delta_r: Vec::new(),
+            pos_r: Vec::new(),
+        }
+    }
+
+    /// Analyses and factors the system of the free vertices; a no-op when the fixed set
+    /// is the one already factored (the matrix depends on nothing else).
+    pub(crate) fn factor(&mut self, fixed: &[bool]) -> Result<(), DeformError> {
+        if self.eq.is_some() && self.fixed_mask == fixed {
+            return Ok(());
+        }
+        self.eq = None;
+        let n = self.full_rows.len();
+        let mut free_of = vec![u32::MAX; n];
+        self.free.clear();
+        for v in 0..n {
+            if !fixed[v] {
+                free_of[v] = self.free.len() as u32;
+                self.free.push(v as u32);
+            }
+        }
+        let mut row_ptr = Vec::with_capacity(self.free.len() + 1);
+        let mut col = Vec::new();
+        let mut coef = Vec::new();
+        row_ptr.push(0);
+        for &v in &self.free {
+            let (cols, coefs) = self.full_rows.row(v as usize);
+            for (&c, &k) in cols.iter().zip(coefs) {
+                let r = free_of[c as usize];
+                if r != u32::MAX {
+                    col.push(r);
+                    coef.push(k);
+                }
+            }
+            row_ptr.push(col.len() as u32);
+        }
+        let nfree = self.free.len();
+        self.delta_r = vec![DVec3::ZERO; nfree];
+        self.pos_r = vec![DVec3::ZERO; nfree];
+        if nfree > 0 {
+            let mut eq = NormalEquations::new(RowSystem { row_ptr, col, coef })?;
+            eq.factor(&vec![false; nfree], Constraints::Hard)?;
+            self.eq = Some(eq);
+        }
+        self.fixed_mask.clear();
+        self.fixed_mask.extend_from_slice(fixed);
+        Ok(())
+    }
+
+    /// As [`NormalEquations::solve`]: fixed vertices are read from `positions`.
+    pub(crate) fn solve(&mut self, delta: &[DVec3], positions: &mut [DVec3]) -> f64 {
+        let Some(eq) = &mut self.eq else { return 0.0 };
+        for (r, &v) in self.free.iter().enumerate() {
+            let (cols, coefs) = self.full_rows.row(v as usize);
+            let mut g = delta[v as usize];
+            for (&c, &k) in cols.iter().zip(coefs) {
+                if self.fixed_mask[c as usize] {
+                    g -= k * positions[c as usize];
+                }
+            }
+            self.delta_r[r] = g;
+            self.pos_r[r] = positions[v as usize];
+        }
+        let moved = eq.solve(&self.delta_r, &mut self.pos_r);
+        for (r, &v) in self.free.iter().enumerate() {
+            positions[v as usize] = self.pos_r[r];
+        }
+        moved
+    }
+
+    pub(crate) fn heap_bytes(&self) -> usize {
+        self.full_rows.col.len() * 12
+            + self.fixed_mask.len()
+            + self.free.len() * 52
+            + self.eq.as_ref().map_or(0, |e| e.heap_bytes())
+    }
+
+    pub(crate) fn factor_len(&self) -> usize {
+        self.eq.as_ref().map_or(0, |e| e.factor_len())
+    }
+}
+
+/// The fast decoder's linear engine.
+pub(crate) enum Engine {
+    /// Full-size system, symbolic analysis once per mesh (any control set).
+    Full(NormalEquations),
+    /// Free vertices only, analysis per control set (hard constraints).
+    Reduced(ReducedSystem),
+}
+
+impl Engine {
+    pub(crate) fn factor(&mut self, fixed: &[bool], mode: Constraints) -> Result<(), DeformError> {
+        match self {
+            Engine::Full(e) => e.factor(fixed, mode),
+            Engine::Reduced(e) => e.factor(fixed),
+        }
+    }
+    pub(crate) fn solve(&mut self, delta: &[DVec3], positions: &mut [DVec3]) -> f64 {
+        match self {
+            Engine::Full(e) => e.solve(delta, positions),
+            Engine::Reduced(e) => e.solve(delta, positions),
+        }
+    }
+    pub(crate) fn is_soft(&self) -> bool {
+        matches!(self, Engine::Full(e) if e.mode != Constraints::Hard)
+    }
+    pub(crate) fn heap_bytes(&self) -> usize {
+        match self {
+            Engine::Full(e) => e.heap_bytes(),
+            Engine::Reduced(e) => e.heap_bytes(),
+        }
+    }
+    pub(crate) fn factor_len(&self) -> usize {
+        match self {
+            Engine::Full(e) => e.factor_len(),
+            Engine::Reduced(e) => e.factor_len(),
+        }
+    }
+}

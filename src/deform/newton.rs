@@ -1,0 +1,458 @@
+//! Coupled Gauss-Newton engine of the fast mean value decoder: the free vertices solve
+//! `F(x) = 0` with `F_v(x) = x_v - v_mv(x)` (method.md section 2 decoding, section 3
+//! fitting; Kazmi et al. 2015 section 3.5.2 solve the same least squares with
+//! Gauss-Newton). Unlike the frozen-offset step, the Jacobian here includes how the normal
+//! offset `s n` of every vertex turns and stretches with its neighbours, so x, y and z
+//! are coupled: `J` is `3F x 3F` for `F` free vertices, with one `3 x 3` block per
+//! (vertex, free ring member) pair.
+//!
+//! `J` is built by forward differences of the decoding (each `v_mv` reads only its own
+//! one-ring, so a block costs three local decodes), the normal equations `J^T J` (plus a
+//! tiny ridge) are factored once with faer's sparse Cholesky (`Par::Seq`), and the
+//! factor is reused as long as it stays a good model: a chord (simplified Newton)
+//! iteration `x <- x - (J0^T J0)^-1 J0^T F(x)`. Its fixed point is `F = 0` whatever the
+//! linearisation point `J0` is; only the contraction rate depends on it, so the factor is
+//! refreshed (numerically; the analysis is kept) when a solve needs many steps.
+//! Positions in metres; the finite-difference step is relative to the mean edge length.
+
+use super::encoding::MeanValueEncoding;
+use super::DeformError;
+use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
+use faer::sparse::linalg::cholesky::{factorize_symbolic_cholesky, LltRef, SymbolicCholesky};
+use faer::sparse::{SparseColMatRef, SymbolicSparseColMatRef};
+use faer::{Conj, MatMut, Par, Side};
+use glam::{DMat3, DVec3};
+
+/// Forward-difference step of the Jacobian, relative to the mean edge length of the rest
+/// mesh (truncation error of the same relative order on an edge-sized ring; rounding
+/// about 1e-16 / 1e-6 relative, far below what a chord iteration needs).
+const FD_REL_STEP: f64 = 1e-6;
+/// Ridge added to the diagonal of `J^T J`, relative to its mean diagonal: keeps the
+/// factorisation definite on soft modes; the fixed point does not depend on it.
+const NEWTON_RIDGE: f64 = 1e-10;
+/// Marks a vertex that is not free.
+const NOT_FREE: u32 = u32::MAX;
+
+/// The coupled system of one fixed set (controls + anchors).
+pub(crate) struct CoupledSystem {
+    /// Reduced index -> vertex, and vertex -> reduced index (or [`NOT_FREE`]).
+    free: Vec<u32>,
+    reduced_of: Vec<u32>,
+    /// Per free row: its entries (the vertex itself first, then its free ring members).
+    ent_ptr: Vec<u32>,
+    ent_col: Vec<u32>,
+    /// `J` blocks, one per entry: `dF_v / dx_u`.
+    jac: Vec<DMat3>,
+    /// Per free row: its fixed ring members and the blocks `dF_v / dx_u` for them (the
+    /// predictor's linear response to moved targets).
+    fix_ptr: Vec<u32>,
+    fix_vtx: Vec<u32>,
+    fix_jac: Vec<DMat3>,
+    /// Per row, per entry pair (p <= q): slots of the block's first row in the three
+    /// scalar columns of the block (upper CSC).
+    pair_ptr: Vec<u32>,
+    pair_base: Vec<[u32; 3]>,
+    /// Upper triangle of `H = J^T J` (3F x 3F, unknown `3r + k`).
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+    symbolic: SymbolicCholesky<usize>,
+    factor: Vec<f64>,
+    scratch: MemBuffer,
+    scratch_bytes: usize,
+    factored: bool,
+    /// Right-hand side / solution (3F), residuals per row, and a position scratch.
+    rhs: Vec<f64>,
+    residual: Vec<DVec3>,
+    work: Vec<DVec3>,
+    /// `F` of the free rows at `cached_at` (the end of the last solve, or the last
+    /// linearisation point): a solve that starts there skips one evaluation.
+    cached_f: Vec<DVec3>,
+    cached_at: Vec<DVec3>,
+    cache_valid: bool,
+    fd_step: f64,
+}
+
+impl CoupledSystem {
+    /// Analyses the pattern of `J^T J` for the free vertices (`!fixed`). No numbers yet:
+    /// call [`Self::linearise`].
+    pub(crate) fn new(
+        enc: &MeanValueEncoding,
+        fixed: &[bool],
+        mean_edge_m: f64,
+    ) -> Result<Self, DeformError> {
+        let n = enc.vertex_count();
+        let rings = enc.rings();
+        let mut reduced_of = vec![NOT_FREE; n];
+        let mut free = Vec::new();
+        for v in 0..n {
+            if !fixed[v] {
+                reduced_of[v] = free.len() as u32;
+                free.push(v as u32);
+            }
+        }
+        let nf = free.len();
+        let mut ent_ptr = Vec::with_capacity(nf + 1);
+        let mut ent_col = Vec::with_capacity(rings.entry_count() + nf);
+        ent_ptr.push(0u32);
+        for &v in &free {
+            ent_col.push(reduced_of[v as usize]);
+            for &u in rings.neighbours(v as usize) {
+                let r = reduced_of[u as usize];
+                if r != NOT_FREE && !ent_col[*ent_ptr.last().unwrap_or(&0) as usize..].contains(&r)
+                {
+                    ent_col.push(r);
+                }
+            }
+            ent_ptr.push(ent_col.len() as u32);
+        }
+        let mut fix_ptr = Vec::with_capacity(nf + 1);
+        let mut fix_vtx: Vec<u32> = Vec::new();
+        fix_ptr.push(0u32);
+        for &v in &free {
+            let start = fix_vtx.len();
+            for &u in rings.neighbours(v as usize) {
+                if reduced_of[u as usize] == NOT_FREE && !fix_vtx[start..].contains(&u) {
+                    fix_vtx.push(u);
+                }
+            }
+            fix_ptr.push(fix_vtx.len() as u32);
+        }
+        // Block pattern: every pair (min, max) of entries met in one row.
+        let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(ent_col.len() * 8);
+        for r in 0..nf {
+            let e = &ent_col[ent_ptr[r] as usize..ent_ptr[r + 1] as usize];
+            for p in 0..e.len() {
+                for q in p..e.len() {
+                    pairs.push((e[p].max(e[q]), e[p].min(e[q]))); // (block column, block row)
+                }
+            }
+        }
+        pairs.sort_unstable();
+        pairs.dedup();
+        // Block rows of each block column, sorted (the diagonal block is last).
+        let mut bcol_ptr = vec![0usize; nf + 1];
+        for &(b, _) in &pairs {
+            bcol_ptr[b as usize + 1] += 1;
+        }
+        for b in 0..nf {
+            bcol_ptr[b + 1] += bcol_ptr[b];
+        }
+        let brow: Vec<u32> = pairs.iter().map(|&(_, a)| a).collect();
+        // Scalar upper CSC: column 3b + l holds rows 3a..3a+2 of every block a < b, then
+        // rows 3b..=3b+l.
+        let dim = 3 * nf;
+        let mut col_ptr = Vec::with_capacity(dim + 1);
+        let mut row_idx = Vec::new();
+        col_ptr.push(0usize);
+        for b in 0..nf {
+            let rows_b = &brow[bcol_ptr[b]..bcol_ptr[b + 1]];
+            for l in 0..3 {
+                for &a in rows_b {
+                    let a = a as usize;
+                    if a < b {
+                        row_idx.extend_from_slice(&[3 * a, 3 * a + 1, 3 * a + 2]);
+                    } else {
+                        row_idx.extend((0..=l).map(|k| 3 * b + k));
+                    }
+                }
+                col_ptr.push(row_idx.len());
+            }
+        }
+        let block_base = |a: u32, b: u32| -> [u32; 3] {
+            let rows_b = &brow[bcol_ptr[b as usize]..bcol_ptr[b as usize + 1]];
+            let idx = rows_b.partition_point(|&x| x < a);
+            let b = b as usize;
+            [0, 1, 2].map(|l| (col_ptr[3 * b + l] + 3 * idx) as u32)
+        };
+        let mut pair_ptr = Vec::with_capacity(nf + 1);
+        let mut pair_base = Vec::new();
+        pair_ptr.push(0u32);
+        for r in 0..nf {
+            let e = &ent_col[ent_ptr[r] as usize..ent_ptr[r + 1] as usize];
+            for p in 0..e.len() {
+                for q in p..e.len() {
+                    pair_base.push(block_base(e[p].min(e[q]), e[p].max(e[q])));
+                }
+            }
+            pair_ptr.push(pair_base.len() as u32);
+        }
+        let view = SymbolicSparseColMatRef::new_checked(dim, dim, &col_ptr, None, &row_idx);
+        let symbolic =
+            factorize_symbolic_cholesky(view, Side::Upper, Default::default(), Default::default())
+                .map_err(|e| DeformError::Factorisation(format!("coupled symbolic: {e:?}")))?;
+        let req = StackReq::any_of(&[
+            symbolic.factorize_numeric_llt_scratch::<f64>(Par::Seq, Default::default()),
+            symbolic.solve_in_place_scratch::<f64>(1, Par::Seq),
+        ]);
+        let scratch_bytes = req.unaligned_bytes_required();
+        let scratch = MemBuffer::try_new(req)
+            .map_err(|_| DeformError::Factorisation("out of memory for scratch".into()))?;
+        Ok(CoupledSystem {
+            free,
+            reduced_of,
+            jac: vec![DMat3::ZERO; ent_col.len()],
+            fix_jac: vec![DMat3::ZERO; fix_vtx.len()],
+            fix_ptr,
+            fix_vtx,
+            ent_ptr,
+            ent_col,
+            pair_ptr,
+            pair_base,
+            values: vec![0.0; row_idx.len()],
+            factor: vec![0.0; symbolic.len_val()],
+            col_ptr,
+            row_idx,
+            symbolic,
+            scratch,
+            scratch_bytes,
+            factored: false,
+            rhs: vec![0.0; dim],
+            residual: vec![DVec3::ZERO; nf],
+            cached_f: vec![DVec3::ZERO; nf],
+            cached_at: Vec::new(),
+            cache_valid: false,
+            work: Vec::new(),
+            fd_step: FD_REL_STEP * mean_edge_m.max(f64::MIN_POSITIVE),
+        })
+    }
+
+    /// Whether a linearisation has been factored.
+    pub(crate) fn is_factored(&self) -> bool {
+        self.factored
+    }
+
+    /// Builds `J` at `positions` (fixed vertices at their current values) by forward
+    /// differences, assembles `J^T J` and factors it.
+    pub(crate) fn linearise(
+        &mut self,
+        enc: &MeanValueEncoding,
+        positions: &[DVec3],
+    ) -> Result<(), DeformError> {
+        self.factored = false;
+        self.cache_valid = false;
+        self.work.clear();
+        self.work.extend_from_slice(positions);
+        let h = self.fd_step;
+        let work = &mut self.work;
+        // dF_v/dx_u = [u == v] I - d v_mv / dx_u, by forward differences.
+        let mut block = |v: usize, u: usize, base: Option<DVec3>| -> (DMat3, DVec3) {
+            let base = base.unwrap_or_else(|| enc.decode_vertex(v, work));
+            let keep = work[u];
+            let mut cols = [DVec3::ZERO; 3];
+            for (k, col) in cols.iter_mut().enumerate() {
+                let mut p = keep;
+                p[k] += h;
+                work[u] = p;
+                *col = -(enc.decode_vertex(v, work) - base) / h;
+                if u == v {
+                    col[k] += 1.0;
+                }
+            }
+            work[u] = keep;
+            (DMat3::from_cols(cols[0], cols[1], cols[2]), base)
+        };
+        for r in 0..self.free.len() {
+            let v = self.free[r] as usize;
+            // The first entry is the vertex itself: its call evaluates the base decode.
+            let mut base = None;
+            for j in self.ent_ptr[r] as usize..self.ent_ptr[r + 1] as usize {
+                let u = self.free[self.ent_col[j] as usize] as usize;
+                let (m, b) = block(v, u, base);
+                self.jac[j] = m;
+                base = Some(b);
+            }
+            for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
+                let (m, b) = block(v, self.fix_vtx[j] as usize, base);
+                self.fix_jac[j] = m;
+                base = Some(b);
+            }
+            // The vertex's own entry always comes first, so its decode is known here.
+            if let Some(b) = base {
+                self.cached_f[r] = positions[v] - b;
+            }
+        }
+        self.values.iter_mut().for_each(|x| *x = 0.0);
+        for r in 0..self.free.len() {
+            let (e0, e1) = (self.ent_ptr[r] as usize, self.ent_ptr[r + 1] as usize);
+            let mut slot = self.pair_ptr[r] as usize;
+            for p in e0..e1 {
+                for q in p..e1 {
+                    let base = self.pair_base[slot];
+                    slot += 1;
+                    let (cp, cq) = (self.ent_col[p], self.ent_col[q]);
+                    if cp == cq {
+                        let m = self.jac[p].transpose() * self.jac[p];
+                        for (l, &b) in base.iter().enumerate() {
+                            let col = m.col(l);
+                            for k in 0..=l {
+                                self.values[b as usize + k] += col[k];
+                            }
+                        }
+                    } else {
+                        // Block (row min, column max) = J_min^T J_max.
+                        let (a, b) = if cp < cq { (p, q) } else { (q, p) };
+                        let m = self.jac[a].transpose() * self.jac[b];
+                        for (l, &s) in base.iter().enumerate() {
+                            let col = m.col(l);
+                            for k in 0..3 {
+                                self.values[s as usize + k] += col[k];
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        // Ridge on the diagonal (the last row of each scalar column is its diagonal).
+        let dim = self.rhs.len();
+        let trace: f64 = (0..dim).map(|c| self.values[self.col_ptr[c + 1] - 1]).sum();
+        let mean_diag = trace / dim.max(1) as f64;
+        if dim == 0 {
+            self.factored = true;
+            return Ok(());
+        }
+        for c in 0..dim {
+            self.values[self.col_ptr[c + 1] - 1] += NEWTON_RIDGE * mean_diag;
+        }
+        let a = SparseColMatRef::new(
+            SymbolicSparseColMatRef::new_checked(dim, dim, &self.col_ptr, None, &self.row_idx),
+            &self.values,
+        );
+        let stack = MemStack::new(&mut self.scratch);
+        self.symbolic
+            .factorize_numeric_llt::<f64>(
+                &mut self.factor,
+                a,
+                Side::Upper,
+                Default::default(),
+                Par::Seq,
+                stack,
+                Default::default(),
+            )
+            .map_err(|e| DeformError::Factorisation(format!("coupled numeric: {e:?}")))?;
+        self.factored = true;
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache_valid = true;
+        Ok(())
+    }
+
+    /// One chord step from `positions`: writes `x - (J^T J)^-1 J^T F(x)` for the free
+    /// vertices into `out` (fixed ones copied). With `jump` (per vertex, zero except at
+    /// fixed vertices about to move), a predictor step instead: `F` is taken to first
+    /// order at the moved fixed vertices, `F(x) + J_fixed jump`, so the step is the
+    /// linear response of the current smooth surface rather than a step from a surface
+    /// with its controls torn away from their neighbours; fixed vertices are written
+    /// moved. Returns (step length over free vertices, largest residual `|F_v(x)|`),
+    /// metres.
+    pub(crate) fn step(
+        &mut self,
+        enc: &MeanValueEncoding,
+        positions: &[DVec3],
+        jump: Option<&[DVec3]>,
+        out: &mut [DVec3],
+    ) -> (f64, f64) {
+        let mut fmax = 0.0f64;
+        let cached = self.cache_valid && self.cached_at.as_slice() == positions;
+        self.cache_valid = false;
+        for (r, &v) in self.free.iter().enumerate() {
+            let mut f = if cached {
+                self.cached_f[r]
+            } else {
+                positions[v as usize] - enc.decode_vertex(v as usize, positions)
+            };
+            fmax = fmax.max(f.length_squared());
+            if let Some(jump) = jump {
+                for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
+                    f += self.fix_jac[j] * jump[self.fix_vtx[j] as usize];
+                }
+            }
+            self.residual[r] = f;
+        }
+        self.rhs.iter_mut().for_each(|x| *x = 0.0);
+        for r in 0..self.free.len() {
+            let f = self.residual[r];
+            for j in self.ent_ptr[r] as usize..self.ent_ptr[r + 1] as usize {
+                let g = self.jac[j].transpose() * f;
+                let c = 3 * self.ent_col[j] as usize;
+                self.rhs[c] -= g.x;
+                self.rhs[c + 1] -= g.y;
+                self.rhs[c + 2] -= g.z;
+            }
+        }
+        out.copy_from_slice(positions);
+        if let Some(jump) = jump {
+            for (o, d) in out.iter_mut().zip(jump) {
+                *o += *d;
+            }
+        }
+        let dim = self.rhs.len();
+        if dim == 0 {
+            return (0.0, fmax.sqrt());
+        }
+        let stack = MemStack::new(&mut self.scratch);
+        let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, dim, 1);
+        LltRef::<usize, f64>::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
+            Conj::No,
+            rhs,
+            Par::Seq,
+            stack,
+        );
+        let mut max_move = 0.0f64;
+        for (r, &v) in self.free.iter().enumerate() {
+            let d = DVec3::new(self.rhs[3 * r], self.rhs[3 * r + 1], self.rhs[3 * r + 2]);
+            let m = d.length_squared();
+            if !(m <= max_move) {
+                max_move = m; // also propagates NaN
+            }
+            out[v as usize] = positions[v as usize] + d;
+        }
+        (max_move.sqrt(), fmax.sqrt())
+    }
+
+    /// Largest `|F_v|` over the free vertices at `positions`, metres; remembered for a
+    /// solve that starts from there (the next frame's warm start).
+    pub(crate) fn residual_at(&mut self, enc: &MeanValueEncoding, positions: &[DVec3]) -> f64 {
+        let mut fmax = 0.0f64;
+        for (r, &v) in self.free.iter().enumerate() {
+            let f = positions[v as usize] - enc.decode_vertex(v as usize, positions);
+            fmax = fmax.max(f.length_squared());
+            self.cached_f[r] = f;
+        }
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache_valid = true;
+        fmax.sqrt()
+    }
+
+    /// Whether `fixed` is the fixed set this system was built for.
+    pub(crate) fn matches(&self, fixed: &[bool]) -> bool {
+        fixed.len() == self.reduced_of.len()
+            && fixed
+                .iter()
+                .zip(&self.reduced_of)
+                .all(|(&f, &r)| f == (r == NOT_FREE))
+    }
+
+    pub(crate) fn heap_bytes(&self) -> usize {
+        self.free.len() * 4
+            + self.reduced_of.len() * 4
+            + self.ent_col.len() * (4 + 72)
+            + self.fix_vtx.len() * (4 + 72)
+            + self.pair_base.len() * 12
+            + self.col_ptr.len() * 8
+            + self.row_idx.len() * 16
+            + self.factor.len() * 8
+            + self.values.len() * 8
+            + self.rhs.len() * 8
+            + self.residual.len() * 24
+            + self.cached_f.len() * 24
+            + self.cached_at.len() * 24
+            + self.scratch_bytes
+            + self.work.len() * 24
+    }
+
+    pub(crate) fn factor_len(&self) -> usize {
+        self.factor.len()
+    }
+}
