@@ -147,7 +147,7 @@ impl Default for SegmentOptions {
             noise_k: 4.0,
             min_distance: 14.0,
             chroma_k: 1.0,
-            shadow_min_brightness: 0.6,
+            shadow_min_brightness: 0.5,
             lit_min_brightness: 0.85,
             highlight_max_brightness: 1.15,
             adapt_rate: 0.05,
