@@ -29,9 +29,9 @@ use std::path::{Path, PathBuf};
 /// printed (grey leggings in front of a grey floor inside the shadow zone are still taken
 /// for the person's shadow, see the segment module docs), the floor guards against
 /// regressions such as the whole legs or the person being lost.
-const MIN_IOU: f64 = 0.80;
+const MIN_IOU: f64 = 0.90;
 /// Mean IoU over all frames and views.
-const MIN_MEAN_IOU: f64 = 0.93;
+const MIN_MEAN_IOU: f64 = 0.95;
 /// Stature and crotch height within 10 mm (issue 4 target for the landmark heights).
 const MAX_HEIGHT_ERR_M: f64 = 0.010;
 /// Hard-look seeds and ordinary seeds scored by default.

@@ -273,6 +273,9 @@ pub struct BackgroundModel {
     coarse: Vec<u8>,
     coarse_clean: Vec<u8>,
     coarse_body: Vec<u8>,
+    /// Per coarse column: row of the last foreground cell of the current unbroken run of
+    /// changed cells (see [`bridge_columns`]).
+    column_top: Vec<u32>,
     tmp: Vec<u8>,
     eroded: Vec<u8>,
     dilated: Vec<u8>,
@@ -322,6 +325,50 @@ struct ModelPlane {
     zone: Vec<u8>,
 }
 
+/// Coarse labels of the classification: changed but explained as shadow or exposure
+/// change, and such a cell bridged into the person (see [`bridge_columns`]). Foreground is
+/// [`MASK_ON`], unchanged 0.
+const WEAK: u8 = 1;
+const BRIDGED: u8 = 253; // odd: the majority filter counts `v & 1`
+/// Marks a column without an open run in [`bridge_columns`].
+const NO_RUN: u32 = u32::MAX;
+
+/// Promotes WEAK cells that lie in a column between two foreground cells, with only
+/// changed cells between them, to BRIDGED (foreground); every other WEAK cell becomes 0.
+///
+/// A standing person is a vertical figure: where legs in trousers of the floor's own hue
+/// cross the floor's image they look like their own cast shadow (darker, same chroma),
+/// but they hang between the clearly changed thighs above and the shoes below. A floor
+/// shadow beside the feet has no foreground above it in its column, and the floor seen
+/// through the gap between the legs ends in unchanged (lit) floor before anything below.
+fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
+    top.clear();
+    top.resize(cw, NO_RUN);
+    for cy in 0..ch {
+        let row = cy * cw;
+        for cx in 0..cw {
+            match coarse[row + cx] {
+                0 => top[cx] = NO_RUN,
+                WEAK => {}
+                _ => {
+                    let t = top[cx];
+                    if t != NO_RUN && (t as usize) + 1 < cy {
+                        for y in t as usize + 1..cy {
+                            coarse[y * cw + cx] = BRIDGED;
+                        }
+                    }
+                    top[cx] = cy as u32;
+                }
+            }
+        }
+    }
+    for v in coarse.iter_mut() {
+        if *v == WEAK {
+            *v = 0;
+        }
+    }
+}
+
 const BAND_NONE: u8 = 0;
 const BAND_BG: u8 = 1;
 const BAND_FG: u8 = 2;
@@ -344,6 +391,7 @@ impl BackgroundModel {
             coarse: Vec::new(),
             coarse_clean: Vec::new(),
             coarse_body: Vec::new(),
+            column_top: Vec::new(),
             tmp: Vec::new(),
             eroded: Vec::new(),
             dilated: Vec::new(),
@@ -527,6 +575,16 @@ impl BackgroundModel {
                 || de > (o.highlight_max_brightness - 1.0) * ee)
     }
 
+    /// True when pixel `i` differs from the model beyond its noise radius (foreground or
+    /// a shadow / exposure change).
+    #[inline(always)]
+    fn is_changed(&self, i: usize, p: [u8; 3]) -> bool {
+        let m = self.px[i];
+        let e = m.color();
+        let d = [0, 1, 2].map(|c| p[c] as f32 - e[c]);
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > m.radius2()
+    }
+
     /// Colour distance to the model of the pixel nearest (x, y) inside the frame (8-bit
     /// units): the sub-pixel edge score. 0 when the frame does not fit the model.
     #[inline]
@@ -652,11 +710,13 @@ impl BackgroundModel {
                 let tau2 = tau2 as f32;
                 let klo = klo_lit + zone as f32 * klo_step;
                 let chroma_ee = dd * ee - de * de;
-                let fg = (dd > tau2)
-                    & ((chroma_ee > ck2 * tau2 * ee) | (de < klo * ee) | (de > khi * ee));
-                *o = (fg as u8).wrapping_neg();
+                let cand = dd > tau2;
+                let fg = cand & ((chroma_ee > ck2 * tau2 * ee) | (de < klo * ee) | (de > khi * ee));
+                // 255: foreground; 1: changed, but explained as shadow or exposure (WEAK).
+                *o = (fg as u8).wrapping_neg() | cand as u8;
             }
         }
+        bridge_columns(&mut self.coarse, cw, ch, &mut self.column_top);
         let nc = (cw * ch) as f32;
         stats.mean_luma = luma_sum as f32 / nc;
         stats.clipped_high = hi as f32 / nc;
@@ -750,7 +810,10 @@ impl BackgroundModel {
                             if x < w && y < h {
                                 let i = y * w + x;
                                 let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
-                                self.band_state[i] = if self.is_foreground(i, p) {
+                                let bridged = self.coarse[cy * cw + cx] == BRIDGED;
+                                self.band_state[i] = if self.is_foreground(i, p)
+                                    || (bridged && self.is_changed(i, p))
+                                {
                                     BAND_FG
                                 } else {
                                     BAND_BG
@@ -1096,6 +1159,33 @@ mod tests {
             m.set_shadow_zone(&Mask::new(3, 3)),
             Err(SegmentError::ZoneSize { .. })
         ));
+    }
+
+    #[test]
+    fn weak_cells_are_bridged_only_between_foreground_cells_of_their_column() {
+        const F: u8 = MASK_ON;
+        const W: u8 = WEAK;
+        // Columns: a leg (thigh, shin of the floor's hue, shoe); the floor seen between
+        // the legs (ends in lit floor); a shadow beside the feet (nothing above).
+        #[rustfmt::skip]
+        let mut c = vec![
+            F, F, 0,
+            W, W, 0,
+            W, W, W,
+            F, 0, W,
+            0, 0, F,
+        ];
+        let mut top = Vec::new();
+        bridge_columns(&mut c, 3, 5, &mut top);
+        #[rustfmt::skip]
+        let want = vec![
+            F, F, 0,
+            BRIDGED, 0, 0,
+            BRIDGED, 0, 0,
+            F, 0, 0,
+            0, 0, F,
+        ];
+        assert_eq!(c, want);
     }
 
     #[test]
