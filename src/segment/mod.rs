@@ -342,11 +342,22 @@ const NO_RUN: u32 = u32::MAX;
 /// shadow beside the feet has no foreground above it in its column, and the floor seen
 /// through the gap between the legs ends in unchanged (lit) floor before anything below.
 fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
+    const CHUNK: usize = 16;
     top.clear();
     top.resize(cw, NO_RUN);
     for cy in 0..ch {
         let row = cy * cw;
-        for cx in 0..cw {
+        let mut cx = 0;
+        while cx < cw {
+            // Most of a frame is unchanged: close the runs of a whole chunk at once.
+            if cx % CHUNK == 0 {
+                let end = (cx + CHUNK).min(cw);
+                if coarse[row + cx..row + end].iter().all(|&v| v == 0) {
+                    top[cx..end].fill(NO_RUN);
+                    cx = end;
+                    continue;
+                }
+            }
             match coarse[row + cx] {
                 0 => top[cx] = NO_RUN,
                 WEAK => {}
@@ -360,12 +371,11 @@ fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
                     top[cx] = cy as u32;
                 }
             }
+            cx += 1;
         }
     }
     for v in coarse.iter_mut() {
-        if *v == WEAK {
-            *v = 0;
-        }
+        *v = if *v == WEAK { 0 } else { *v };
     }
 }
 
