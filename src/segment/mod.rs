@@ -13,7 +13,13 @@
 //! zone). Elsewhere (the backdrop behind the person) only exposure changes are tolerated
 //! (`lit_min_brightness`), so grey or dark clothing in front of a backdrop of the same hue
 //! is no longer taken for a shadow; and no surface gets brighter by more than
-//! `highlight_max_brightness` when a person steps in (a person only takes light away).
+//! `highlight_max_brightness` when a person steps in (a person only takes light away;
+//! the margin takes exposure drift and the optics' halo of bright parts on a dark
+//! backdrop, which would otherwise join a hand to the hip across a narrow gap).
+//!
+//! Legs in trousers of the floor's own hue look like their own cast shadow where they
+//! cross the floor's image: shadow-like cells between foreground cells of the same
+//! column are bridged into the person (`bridge_columns`).
 //! The zone flag rides in the top bit of the pixel's packed noise radius. Everything is evaluated
 //! without per-pixel division: with `d = I - E`, `|I - alpha E|^2 |E|^2 = |d|^2 |E|^2 -
 //! (d.E)^2` and `alpha - 1 = d.E / |E|^2`.
@@ -139,6 +145,9 @@ pub struct SegmentOptions {
     pub adapt_rate: f32,
     /// Components smaller than this fraction of the frame are ignored (not a person).
     pub min_person_fraction: f32,
+    /// Bridge shadow-like cells between foreground cells of a column (see
+    /// `bridge_columns`).
+    pub bridge_columns: bool,
 }
 
 impl Default for SegmentOptions {
@@ -149,9 +158,10 @@ impl Default for SegmentOptions {
             chroma_k: 1.0,
             shadow_min_brightness: 0.5,
             lit_min_brightness: 0.85,
-            highlight_max_brightness: 1.15,
+            highlight_max_brightness: 1.25,
             adapt_rate: 0.05,
             min_person_fraction: 0.01,
+            bridge_columns: true,
         }
     }
 }
@@ -726,7 +736,13 @@ impl BackgroundModel {
                 *o = (fg as u8).wrapping_neg() | cand as u8;
             }
         }
-        bridge_columns(&mut self.coarse, cw, ch, &mut self.column_top);
+        if o.bridge_columns {
+            bridge_columns(&mut self.coarse, cw, ch, &mut self.column_top);
+        } else {
+            for v in self.coarse.iter_mut() {
+                *v = if *v == WEAK { 0 } else { *v };
+            }
+        }
         let nc = (cw * ch) as f32;
         stats.mean_luma = luma_sum as f32 / nc;
         stats.clipped_high = hi as f32 / nc;
