@@ -338,13 +338,14 @@ struct ModelPlane {
 /// Coarse labels of the classification: changed but explained as shadow or exposure
 /// change, and such a cell bridged into the person (see [`bridge_columns`]). Foreground is
 /// [`MASK_ON`], unchanged 0.
-const WEAK: u8 = 1;
+const WEAK: u8 = 2;
 const BRIDGED: u8 = 253; // odd: the majority filter counts `v & 1`
 /// Marks a column without an open run in [`bridge_columns`].
 const NO_RUN: u32 = u32::MAX;
 
 /// Promotes WEAK cells that lie in a column between two foreground cells, with only
-/// changed cells between them, to BRIDGED (foreground); every other WEAK cell becomes 0.
+/// changed cells between them, to BRIDGED (foreground); other WEAK cells stay WEAK (even,
+/// so background to the majority filter).
 ///
 /// A standing person is a vertical figure: where legs in trousers of the floor's own hue
 /// cross the floor's image they look like their own cast shadow (darker, same chroma),
@@ -383,9 +384,6 @@ fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
             }
             cx += 1;
         }
-    }
-    for v in coarse.iter_mut() {
-        *v = if *v == WEAK { 0 } else { *v };
     }
 }
 
@@ -733,15 +731,13 @@ impl BackgroundModel {
                 let cand = dd > tau2;
                 let fg = cand & ((chroma_ee > ck2 * tau2 * ee) | (de < klo * ee) | (de > khi * ee));
                 // 255: foreground; 1: changed, but explained as shadow or exposure (WEAK).
-                *o = (fg as u8).wrapping_neg() | cand as u8;
+                *o = (fg as u8).wrapping_neg() | (cand as u8) << 1;
             }
         }
+        // WEAK cells are even: the majority filter below (which counts `v & 1`) takes
+        // them as background without a clean-up pass.
         if o.bridge_columns {
             bridge_columns(&mut self.coarse, cw, ch, &mut self.column_top);
-        } else {
-            for v in self.coarse.iter_mut() {
-                *v = if *v == WEAK { 0 } else { *v };
-            }
         }
         let nc = (cw * ch) as f32;
         stats.mean_luma = luma_sum as f32 / nc;
@@ -1206,9 +1202,9 @@ mod tests {
         #[rustfmt::skip]
         let want = vec![
             F, F, 0,
-            BRIDGED, 0, 0,
-            BRIDGED, 0, 0,
-            F, 0, 0,
+            BRIDGED, W, 0,
+            BRIDGED, W, W,
+            F, 0, W,
             0, 0, F,
         ];
         assert_eq!(c, want);
