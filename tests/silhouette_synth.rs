@@ -1,29 +1,47 @@
 //! The silhouette stage on the synthetic renderer's recordings (`fitstation::synth`:
 //! shaded MakeHuman-based bodies in tight clothing, random station geometry within the
 //! kiosk's ranges, lens distortion, optics blur, vignetting, noise, flicker, sway, soft
-//! shadows): mask IoU against the truth masks of every subject frame, and the stature,
-//! crotch and armpit heights against the truth landmarks of the body mesh.
+//! shadows): mask IoU against the truth masks of every subject frame, and the heights of
+//! the head top, crotch, armpits and acromions against the truth landmarks of the mesh.
+//!
+//! The seeds are the first seeds whose drawn look is hard for a background model (grey
+//! or dark clothing close to the backdrop or floor colour, selected by the scene colours
+//! alone, before any rendering) plus a few ordinary ones. Environment:
+//! - `SILHOUETTE_SEEDS=1,2,3` renders and scores those seeds instead;
+//! - `SILHOUETTE_EVAL_SET=dir` scores every `subject_*` recording of a
+//!   `fitstation synth-set` folder instead (MP4 or PNG);
+//! - `SILHOUETTE_SYNTH_DUMP=dir` keeps frame, our mask and the truth mask of each view.
+//!
 //! Skipped (SKIPPED line) when the body source is not on this machine.
 
 use fitstation::camera::View;
-use fitstation::landmarks::{LandmarkName, SilhouetteExecutor, SilhouetteOptions};
+use fitstation::landmarks::{
+    LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult,
+};
 use fitstation::recording::{FrameFormat, Recording};
 use fitstation::segment::Mask;
+use fitstation::synth::rng::SplitMix64;
+use fitstation::synth::scene::Scene;
 use fitstation::synth::{self, load_truth, render_recording, truth_dir, SynthConfig};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-/// Mask IoU floor on these recordings. The issue's 0.98 holds on the phantom and the
-/// MakeHuman renders (tests/silhouette_synthetic.rs, silhouette_mesh.rs); here dark
-/// trousers against a floor of the same hue pass the shadow test (Horprasert's
-/// brightness/chromaticity test cannot tell them apart) and are lost below the knee:
-/// a known gap, measured rather than hidden.
-const MIN_IOU: f64 = 0.75;
+/// Mask IoU floor of every frame. The issue's target is 0.98; measured figures are
+/// printed (grey leggings in front of a grey floor inside the shadow zone are still taken
+/// for the person's shadow, see the segment module docs), the floor guards against
+/// regressions such as the whole legs or the person being lost.
+const MIN_IOU: f64 = 0.90;
+/// Mean IoU over all frames and views.
+const MIN_MEAN_IOU: f64 = 0.95;
 /// Stature and crotch height within 10 mm (issue 4 target for the landmark heights).
 const MAX_HEIGHT_ERR_M: f64 = 0.010;
-/// The truth armpit is a 3-D definition (highest slice where the arm's section is
-/// separate from the torso's), the station's the apex of the silhouette gap. They agree
-/// within millimetres on some seeds and differ by 12-14 cm on others (truth at 83 % of
-/// the stature, ours at 75 %), so armpits are printed, not asserted.
+/// Hard-look seeds and ordinary seeds scored by default.
+const HARD_SEEDS: usize = 5;
+const EASY_SEEDS: [u64; 2] = [2, 5];
+/// Seeds scanned for hard looks.
+const SCAN_SEEDS: std::ops::Range<u64> = 1..400;
+/// A clothing colour this close (sRGB distance, 8-bit units) to the backdrop or floor
+/// colour makes a hard look.
+const HARD_COLOUR_DISTANCE: f32 = 60.0;
 
 fn body_available() -> bool {
     match synth::subject_mesh(&synth::subject::SubjectParams::sample(1)) {
@@ -45,115 +63,232 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
+fn to_srgb(c: [f32; 3]) -> [f32; 3] {
+    c.map(|v| 255.0 * v.max(0.0).powf(1.0 / 2.2))
+}
+
+fn dist(a: [f32; 3], b: [f32; 3]) -> f32 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+/// How hard a seed's look is: the smallest distance of shirt / leggings to the backdrop
+/// or floor colour (the scene is drawn from the same stream as `render_recording` does).
+fn look_hardness(seed: u64) -> f32 {
+    let calib = fitstation::camera::StationCalibration::nominal(720, 1280, 1300.0, 2.6, 1.0, 0.9);
+    let mut rng = SplitMix64::stream(seed, 0x5C);
+    let scene = Scene::random(&mut rng, [&calib.front, &calib.side]);
+    let l = &scene.look;
+    let mut d = f32::MAX;
+    for cloth in [l.shirt, l.leggings] {
+        for bg in [l.backdrop, l.floor] {
+            d = d.min(dist(to_srgb(cloth), to_srgb(bg)));
+        }
+    }
+    d
+}
+
+fn default_seeds() -> Vec<u64> {
+    let mut seeds: Vec<u64> = SCAN_SEEDS
+        .filter(|&s| look_hardness(s) < HARD_COLOUR_DISTANCE)
+        .take(HARD_SEEDS)
+        .collect();
+    seeds.extend(EASY_SEEDS);
+    seeds
+}
+
+/// Heights compared with the truth: (ours, truth key).
+const HEIGHTS: [(LandmarkName, &str); 6] = [
+    (LandmarkName::HeadTop, "head_top"),
+    (LandmarkName::Crotch, "crotch"),
+    (LandmarkName::ArmpitLeft, "left_armpit"),
+    (LandmarkName::ArmpitRight, "right_armpit"),
+    (LandmarkName::AcromionLeft, "left_acromion"),
+    (LandmarkName::AcromionRight, "right_acromion"),
+];
+
+/// Scores of one subject frame pair.
+struct FrameScore {
+    name: String,
+    index: usize,
+    iou: [f64; 2],
+    /// Height error (ours - truth), metres, per entry of `HEIGHTS`.
+    height_err: [Option<f64>; 6],
+}
+
+fn load_mask(path: &Path) -> Mask {
+    let t = image::open(path).expect("truth mask").to_luma8();
+    Mask {
+        width: t.width(),
+        height: t.height(),
+        data: t.into_raw(),
+    }
+}
+
+fn evaluate(rec_dir: &Path, name: &str, out: &mut Vec<FrameScore>) {
+    let tdir = truth_dir(rec_dir);
+    let truth = load_truth(&tdir).expect("truth");
+    let mut rec = Recording::open(rec_dir).expect("open");
+    let calib = rec.calibration().clone();
+    let mut ex = SilhouetteExecutor::new(&calib, SilhouetteOptions::default());
+    let mut res = SilhouetteResult::empty();
+    let dump = std::env::var_os("SILHOUETTE_SYNTH_DUMP").map(PathBuf::from);
+    for f in &truth.per_frame {
+        let (front, side) = rec.frame_pair(f.index).expect("frame");
+        if !f.subject {
+            ex.learn_background(&front, &side).expect("learn");
+            continue;
+        }
+        ex.process_into(&front, &side, &mut res).expect("process");
+        let mut iou = [0.0; 2];
+        for (k, (view, mask)) in [
+            (View::Front, &res.masks.front),
+            (View::Side, &res.masks.side),
+        ]
+        .into_iter()
+        .enumerate()
+        {
+            let path = tdir
+                .join("masks")
+                .join(view.name())
+                .join(format!("{:06}.png", f.index));
+            iou[k] = mask.iou(&load_mask(&path));
+            if let Some(d) = &dump {
+                let _ = std::fs::create_dir_all(d);
+                let tag = format!("{name}_{}_{}", f.index, view.name());
+                let frame = if view == View::Front { &front } else { &side };
+                frame
+                    .save(d.join(format!("{tag}_frame.png")))
+                    .expect("save");
+                image::GrayImage::from_raw(mask.width, mask.height, mask.data.clone())
+                    .expect("mask")
+                    .save(d.join(format!("{tag}_ours.png")))
+                    .expect("save");
+                std::fs::copy(&path, d.join(format!("{tag}_truth.png"))).expect("copy");
+            }
+        }
+        let lm = &res.landmarks;
+        let mut height_err = [None; 6];
+        for (k, (ours, key)) in HEIGHTS.iter().enumerate() {
+            let got = if *ours == LandmarkName::HeadTop {
+                Some(lm.stature_m).filter(|&s| s > 0.0)
+            } else {
+                lm.get(*ours).map(|p| p.station.y)
+            };
+            let want = truth.landmarks.get(*key).map(|p| p[1]);
+            if let (Some(g), Some(w)) = (got, want) {
+                height_err[k] = Some(g - w);
+            }
+        }
+        out.push(FrameScore {
+            name: name.to_string(),
+            index: f.index,
+            iou,
+            height_err,
+        });
+    }
+}
+
+fn fmt_err(e: Option<f64>) -> String {
+    e.map_or("   -   ".into(), |e| format!("{:+7.1}", e * 1e3))
+}
+
 #[test]
 fn synthetic_recordings_segment_and_give_landmark_heights() {
     if !body_available() {
         return;
     }
-    let mut worst_iou = 1.0f64;
-    let mut worst = [0.0f64; 3];
-    for seed in [5u64, 6, 7] {
-        let out = tmp(&format!("s{seed}"));
-        let mut cfg = SynthConfig::from_seed(seed);
-        cfg.empty_frames = 10;
-        cfg.subject_frames = 2;
-        cfg.format = FrameFormat::Png;
-        render_recording(&cfg, &out).expect("render");
-        let tdir = truth_dir(&out);
-        let truth = load_truth(&tdir).expect("truth");
-        let mut rec = Recording::open(&out).expect("open");
-        let calib = rec.calibration().clone();
-        let mut ex = SilhouetteExecutor::new(&calib, SilhouetteOptions::default());
-        for f in &truth.per_frame {
-            let (front, side) = rec.frame_pair(f.index).expect("frame");
-            if !f.subject {
-                ex.learn_background(&front, &side).expect("learn");
-                continue;
-            }
-            let res = ex.process(&front, &side).expect("process");
-            for (view, mask) in [
-                (View::Front, &res.masks.front),
-                (View::Side, &res.masks.side),
-            ] {
-                let path = tdir
-                    .join("masks")
-                    .join(view.name())
-                    .join(format!("{:06}.png", f.index));
-                let t = image::open(&path).expect("truth mask").to_luma8();
-                let truth_mask = Mask {
-                    width: t.width(),
-                    height: t.height(),
-                    data: t.into_raw(),
-                };
-                let iou = mask.iou(&truth_mask);
-                // SILHOUETTE_SYNTH_DUMP=dir keeps frame, our mask and the truth for a look.
-                if let Some(d) = std::env::var_os("SILHOUETTE_SYNTH_DUMP") {
-                    let d = PathBuf::from(d);
-                    let _ = std::fs::create_dir_all(&d);
-                    let tag = format!("s{seed}_{}_{}", f.index, view.name());
-                    let frame = if view == View::Front { &front } else { &side };
-                    frame
-                        .save(d.join(format!("{tag}_frame.png")))
-                        .expect("save");
-                    image::GrayImage::from_raw(mask.width, mask.height, mask.data.clone())
-                        .expect("mask")
-                        .save(d.join(format!("{tag}_ours.png")))
-                        .expect("save");
-                    std::fs::copy(&path, d.join(format!("{tag}_truth.png"))).expect("copy");
-                }
-                println!(
-                    "seed {seed} frame {} {}: IoU {iou:.4}",
-                    f.index,
-                    view.name()
-                );
-                worst_iou = worst_iou.min(iou);
-            }
-            let lm = &res.landmarks;
-            println!("seed {seed} frame {}: verdicts {:?}", f.index, lm.verdicts);
-            let ty = |k: &str| truth.landmarks.get(k).map(|p| p[1]);
-            let pairs = [
-                ("stature", Some(lm.stature_m), ty("head_top"), 0),
-                (
-                    "crotch",
-                    lm.get(LandmarkName::Crotch).map(|p| p.station.y),
-                    ty("crotch"),
-                    1,
-                ),
-                (
-                    "armpit_left",
-                    lm.get(LandmarkName::ArmpitLeft).map(|p| p.station.y),
-                    ty("left_armpit"),
-                    2,
-                ),
-                (
-                    "armpit_right",
-                    lm.get(LandmarkName::ArmpitRight).map(|p| p.station.y),
-                    ty("right_armpit"),
-                    2,
-                ),
-            ];
-            for (name, got, want, slot) in pairs {
-                let (Some(g), Some(w)) = (got, want) else {
-                    panic!("seed {seed}: {name} missing (ours {got:?}, truth {want:?})");
-                };
-                println!(
-                    "seed {seed} frame {}: {name:<13} ours {g:.4} truth {w:.4} ({:+.1} mm)",
-                    f.index,
-                    (g - w) * 1e3
-                );
-                worst[slot] = worst[slot].max((g - w).abs());
-            }
+    let mut scores = Vec::new();
+    if let Some(set) = std::env::var_os("SILHOUETTE_EVAL_SET") {
+        let mut dirs: Vec<PathBuf> = std::fs::read_dir(&set)
+            .expect("eval set")
+            .filter_map(|e| e.ok().map(|e| e.path()))
+            .filter(|p| {
+                p.is_dir()
+                    && p.file_name()
+                        .is_some_and(|n| !n.to_string_lossy().ends_with(".truth"))
+            })
+            .collect();
+        dirs.sort();
+        for d in dirs {
+            let name = d
+                .file_name()
+                .unwrap_or_default()
+                .to_string_lossy()
+                .into_owned();
+            evaluate(&d, &name, &mut scores);
         }
-        let _ = std::fs::remove_dir_all(&out);
-        let _ = std::fs::remove_dir_all(&tdir);
+    } else {
+        let seeds: Vec<u64> = match std::env::var("SILHOUETTE_SEEDS") {
+            Ok(s) => s.split(',').filter_map(|v| v.trim().parse().ok()).collect(),
+            Err(_) => default_seeds(),
+        };
+        for seed in seeds {
+            let out = tmp(&format!("s{seed}"));
+            let mut cfg = SynthConfig::from_seed(seed);
+            cfg.empty_frames = 10;
+            cfg.subject_frames = 2;
+            cfg.format = FrameFormat::Png;
+            render_recording(&cfg, &out).expect("render");
+            println!("seed {seed}: look hardness {:.0}", look_hardness(seed));
+            evaluate(&out, &format!("seed {seed}"), &mut scores);
+            let _ = std::fs::remove_dir_all(&out);
+            let _ = std::fs::remove_dir_all(truth_dir(&out));
+        }
     }
     println!(
-        "worst: IoU {worst_iou:.4}, stature {:.1} mm, crotch {:.1} mm, armpits {:.1} mm",
+        "{:<12} {:>5} {:>7} {:>7} | height error mm: {:>7} {:>7} {:>7} {:>7} {:>7} {:>7}",
+        "recording",
+        "frame",
+        "IoU F",
+        "IoU S",
+        "top",
+        "crotch",
+        "armp L",
+        "armp R",
+        "acro L",
+        "acro R"
+    );
+    let mut worst_iou = 1.0f64;
+    let mut worst = [0.0f64; 6];
+    let mut missing = Vec::new();
+    for s in &scores {
+        println!(
+            "{:<12} {:>5} {:>7.4} {:>7.4} | {:>22} {} {} {} {} {} {}",
+            s.name,
+            s.index,
+            s.iou[0],
+            s.iou[1],
+            "",
+            fmt_err(s.height_err[0]),
+            fmt_err(s.height_err[1]),
+            fmt_err(s.height_err[2]),
+            fmt_err(s.height_err[3]),
+            fmt_err(s.height_err[4]),
+            fmt_err(s.height_err[5]),
+        );
+        worst_iou = worst_iou.min(s.iou[0]).min(s.iou[1]);
+        for k in 0..6 {
+            match s.height_err[k] {
+                Some(e) => worst[k] = worst[k].max(e.abs()),
+                None => missing.push(format!("{} {}: {}", s.name, s.index, HEIGHTS[k].1)),
+            }
+        }
+    }
+    let mean_iou =
+        scores.iter().map(|s| s.iou[0] + s.iou[1]).sum::<f64>() / (2 * scores.len().max(1)) as f64;
+    println!(
+        "worst IoU {worst_iou:.4}, mean IoU {mean_iou:.4}; worst |height error| mm: top {:.1}, crotch {:.1}, armpits {:.1}/{:.1}, acromions {:.1}/{:.1}",
         worst[0] * 1e3,
         worst[1] * 1e3,
-        worst[2] * 1e3
+        worst[2] * 1e3,
+        worst[3] * 1e3,
+        worst[4] * 1e3,
+        worst[5] * 1e3
     );
-    assert!(worst_iou > MIN_IOU, "IoU {worst_iou}");
+    assert!(!scores.is_empty());
+    assert!(missing.is_empty(), "landmarks not found: {missing:?}");
+    assert!(worst_iou >= MIN_IOU, "IoU {worst_iou}");
+    assert!(mean_iou >= MIN_MEAN_IOU, "mean IoU {mean_iou}");
     assert!(
         worst[0] < MAX_HEIGHT_ERR_M && worst[1] < MAX_HEIGHT_ERR_M,
         "{worst:?}"

@@ -11,6 +11,7 @@
 //! - Refined contours lie on the estimated edge itself (the 50 % level of the colour
 //!   difference to the backdrop), so about half a pixel outside the boundary pixels.
 
+pub mod chordal;
 pub mod query;
 
 pub use query::{ContourGrid, MaskSpans, NearestOnContour, SilhouetteTarget};

@@ -19,8 +19,13 @@ const CROTCH_ZONE_X_H: f64 = 0.3;
 const CROTCH_ZONE_Y_H: f64 = 1.0;
 const ARMPIT_ZONE_X_H: (f64, f64) = (0.1, 1.2);
 const ARMPIT_ZONE_Y_H: (f64, f64) = (0.3, 2.5);
-/// The acromion target g = (+-0.8 h, 2.5 h) (step 4).
+/// The acromion target g = (+-0.8 h, 2.5 h) about the figure's centre (step 4), used
+/// when no crotch was found.
 const ACROMION_G_H: (f64, f64) = (0.8, 2.5);
+/// With a crotch, g = (crotch.x +- 0.8 h, crotch.y + 2.45 h): the template analysis's
+/// definition (`body::prepare`), so that the station's acromions and the template's are
+/// the same landmark (the paper's g is given loosely "about mid-height").
+use crate::body::prepare::{ACROMION_G_X_H, ACROMION_G_Y_H};
 /// Acromion candidates are above y_c + this (in h).
 const ACROMION_MIN_Y_H: f64 = 1.5;
 /// Heights above the crotch of the limb joints (second table), in h.
@@ -140,9 +145,14 @@ pub fn analyse_front(plane: &[DVec2]) -> FrontFeatures {
         }
     }
 
-    // Step 4: the acromions, the contour points closest to g = (+-0.8h, 2.5h).
+    // Step 4: the acromions, the contour points closest to g (crotch-relative when the
+    // crotch is known, see ACROMION_G_Y_H).
+    let crotch = f.crotch.map(|i| plane[i]);
     for side in [1.0f64, -1.0] {
-        let g = DVec2::new(c.x + side * ACROMION_G_H.0 * h, c.y + ACROMION_G_H.1 * h);
+        let g = match crotch {
+            Some(k) => DVec2::new(k.x + side * ACROMION_G_X_H * h, k.y + ACROMION_G_Y_H * h),
+            None => DVec2::new(c.x + side * ACROMION_G_H.0 * h, c.y + ACROMION_G_H.1 * h),
+        };
         let best = (0..n)
             .filter(|&i| {
                 plane[i].y >= c.y + ACROMION_MIN_Y_H * h && side * (plane[i].x - c.x) > 0.0

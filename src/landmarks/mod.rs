@@ -32,7 +32,7 @@ pub use analysis::{analyse_front, analyse_side, FrontFeatures, SideFeatures};
 use crate::camera::{StationCalibration, View};
 use crate::contour::{self, Contour, SilhouetteTarget, SubpixelOptions};
 use crate::imgproc::PointUndistorter;
-use crate::segment::{BackgroundModel, Mask, SegmentError, SegmentOptions, SegmentStats};
+use crate::segment::{self, BackgroundModel, Mask, SegmentError, SegmentOptions, SegmentStats};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use std::time::Instant;
@@ -419,9 +419,18 @@ const CHAIN_SPACING_PX: f64 = 2.0;
 impl SilhouetteExecutor {
     pub fn new(calib: &StationCalibration, opts: SilhouetteOptions) -> Self {
         let state = |v: View| {
-            let i = calib.camera(v).intrinsics;
+            let cam = calib.camera(v);
+            let i = cam.intrinsics;
+            let mut model = BackgroundModel::new(i.width, i.height, opts.segment);
+            // Cast shadows only on the floor around the mark (segment module docs).
+            let mut zone = Mask::default();
+            segment::floor_shadow_zone(cam, segment::FLOOR_SHADOW_RADIUS_M, &mut zone);
+            if model.set_shadow_zone(&zone).is_err() {
+                // Unreachable (the zone is made at the camera's size); the whole frame
+                // stays zone, the model's default.
+            }
             ViewState {
-                model: BackgroundModel::new(i.width, i.height, opts.segment),
+                model,
                 undistort: PointUndistorter::new(i),
                 chain: Vec::new(),
                 chain_f: Vec::new(),

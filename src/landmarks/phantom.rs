@@ -300,9 +300,15 @@ impl Phantom {
             }
             Some(DVec2::new(x, lo))
         };
-        // Acromions: the silhouette point closest to g = (+-0.8h, 2.5h) from the centre.
+        // Acromions: the silhouette point closest to g = (crotch.x +- 0.8h, crotch.y +
+        // 2.45h) (the definition of `body::prepare` and of the station), else to
+        // (+-0.8h, 2.5h) from the centre.
         let acromion = |side: f64| -> DVec2 {
-            let g = DVec2::new(ox + side * 0.8 * h, yc + 2.5 * h);
+            use crate::body::prepare::{ACROMION_G_X_H, ACROMION_G_Y_H};
+            let g = match crotch {
+                Some(c) => DVec2::new(c.x + side * ACROMION_G_X_H * h, c.y + ACROMION_G_Y_H * h),
+                None => DVec2::new(ox + side * 0.8 * h, yc + 2.5 * h),
+            };
             let g_in = self.inside_front(g.x, g.y);
             let mut best = (f64::INFINITY, g);
             for k in 0..1440 {
