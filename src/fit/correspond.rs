@@ -588,61 +588,18 @@ mod tests {
     use crate::camera::StationCalibration;
     use crate::mesh::shapes;
 
-    /// Rasterises the silhouette of a convex-ish mesh by filling each projected triangle.
+    /// The silhouette of a whole mesh, through the fitter's own rasteriser.
     pub(crate) fn render_mask(mesh: &TriMesh, cam: &Camera) -> Vec<u8> {
-        let (w, h) = (
-            cam.intrinsics.width as usize,
-            cam.intrinsics.height as usize,
+        let mut m = Vec::new();
+        crate::fit::shape::rasterize_band(
+            &mesh.positions,
+            &mesh.triangles,
+            cam,
+            cam.intrinsics.width,
+            cam.intrinsics.height,
+            (f64::MIN, f64::MAX),
+            &mut m,
         );
-        let mut m = vec![0u8; w * h];
-        for t in &mesh.triangles {
-            let Some(p) = t
-                .iter()
-                .map(|&i| cam.project(mesh.positions[i as usize]))
-                .collect::<Option<Vec<_>>>()
-            else {
-                continue;
-            };
-            let minx = p
-                .iter()
-                .map(|q| q.x)
-                .fold(f64::MAX, f64::min)
-                .floor()
-                .max(0.0) as usize;
-            let maxx = p
-                .iter()
-                .map(|q| q.x)
-                .fold(f64::MIN, f64::max)
-                .ceil()
-                .min(w as f64 - 1.0) as usize;
-            let miny = p
-                .iter()
-                .map(|q| q.y)
-                .fold(f64::MAX, f64::min)
-                .floor()
-                .max(0.0) as usize;
-            let maxy = p
-                .iter()
-                .map(|q| q.y)
-                .fold(f64::MIN, f64::max)
-                .ceil()
-                .min(h as f64 - 1.0) as usize;
-            let area = (p[1] - p[0]).perp_dot(p[2] - p[0]);
-            if area.abs() < 1e-12 {
-                continue;
-            }
-            for y in miny..=maxy {
-                for x in minx..=maxx {
-                    let q = DVec2::new(x as f64, y as f64);
-                    let w0 = (p[1] - q).perp_dot(p[2] - q) / area;
-                    let w1 = (p[2] - q).perp_dot(p[0] - q) / area;
-                    let w2 = 1.0 - w0 - w1;
-                    if w0 >= 0.0 && w1 >= 0.0 && w2 >= 0.0 {
-                        m[y * w + x] = 255;
-                    }
-                }
-            }
-        }
         m
     }
 

@@ -303,23 +303,6 @@ impl SectionPlan {
                 }
             }
             let keep = outward_inliers(&scratch.trend_y, &scratch.trend_d);
-            if std::env::var_os("FITSTATION_DEBUG_SECTIONS").is_some() {
-                eprintln!(
-                    "trim {:?} side {side}: {:?}",
-                    chain.axis,
-                    scratch
-                        .trend_y
-                        .iter()
-                        .zip(&scratch.trend_d)
-                        .zip(&keep)
-                        .map(|((y, d), k)| format!(
-                            "{y:.2}:{:.1}{}",
-                            d * 1e3,
-                            if *k { "" } else { "x" }
-                        ))
-                        .collect::<Vec<_>>()
-                );
-            }
             let mut k = 0;
             for c in constraints.iter_mut() {
                 if c[side].is_some() {
@@ -357,20 +340,6 @@ impl SectionPlan {
         let mut smooth_shift = Vec::with_capacity(m);
         running_median(&shift, &mut scratch.window, &mut smooth_shift);
         fill(&mut smooth_shift, 0.0);
-        if std::env::var_os("FITSTATION_DEBUG_SECTIONS").is_some() {
-            for e in 0..m {
-                eprintln!(
-                    "chain {:?} e {e} y {:.3} raw {:?} s {:.3} shift {:?}/{:.4} cons {:?}",
-                    chain.axis,
-                    scratch.centres[e],
-                    scratch.raw_scale[e],
-                    scratch.scales[e],
-                    shift[e],
-                    smooth_shift[e],
-                    constraints[e]
-                );
-            }
-        }
         // delta(x) = shift + (s - 1)(x - mid) = alpha + beta x.
         out.clear();
         for e in 0..m {
