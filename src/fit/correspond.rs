@@ -276,19 +276,7 @@ pub fn select_controls(
                     View::Front => front,
                     View::Side => side,
                 };
-                let key = |v: u32| -> f64 {
-                    let p = mesh.positions[v as usize];
-                    match variant {
-                        Variant::SliceExtremes => p.dot(status.axis()),
-                        Variant::PerspectiveRim => {
-                            // Bearing seen from the camera, signed toward the status side.
-                            let c = cam.camera_from_station.apply(p);
-                            let u = if c.z > 1e-6 { c.x / c.z } else { 0.0 };
-                            let axis_cam = cam.camera_from_station.rotation * status.axis();
-                            u * axis_cam.x.signum()
-                        }
-                    }
-                };
+                let key = |v: u32| extreme_key(variant, cam, status, mesh.positions[v as usize]);
                 if let Some(&best) = members.iter().max_by(|a, b| key(**a).total_cmp(&key(**b))) {
                     if !set.controls.iter().any(|c| c.vertex == best) {
                         set.controls.push(Control {
@@ -306,6 +294,16 @@ pub fn select_controls(
         }
     }
     set
+}
+
+/// How far `p` lies toward `status`'s side: along the station axis for the paper's
+/// slice extremes, as the bearing seen from `cam` for the perspective rim (the vertex with
+/// the largest key is the one the view's silhouette edge belongs to).
+pub(crate) fn extreme_key(variant: Variant, cam: &Camera, status: Status, p: DVec3) -> f64 {
+    match variant {
+        Variant::SliceExtremes => p.dot(status.axis()),
+        Variant::PerspectiveRim => bearing(cam, status, p).0,
+    }
 }
 
 fn part_index(p: Part) -> usize {
@@ -374,7 +372,7 @@ fn occluded(positions: &[DVec3], set: &ControlSet, c: &Control, cam: &Camera) ->
 
 /// How close (metres, at the control's depth) another part's silhouette may come to a
 /// control's edge before the edge is taken as hidden.
-const OCCLUSION_MARGIN_M: f64 = 0.015;
+const OCCLUSION_MARGIN_M: f64 = 0.005;
 /// The same in the side view, where the arms lie over the trunk and the legs over each
 /// other: only a part reaching out to the edge hides it.
 const SIDE_OCCLUSION_MARGIN_M: f64 = 0.003;

@@ -414,7 +414,14 @@ impl Fitter {
             .collect();
         let mut indices: Vec<u32> = controls.controls.iter().map(|c| c.vertex).collect();
         let (plan, dense) = if self.opts.dense_sections {
-            let plan = sections::SectionPlan::new(&controls);
+            let mut plan = sections::SectionPlan::new(&controls);
+            plan.set_rims(
+                &body.positions,
+                &self.edges,
+                &self.template_labels,
+                &controls,
+                [&calib.front, &calib.side],
+            );
             let mut taken = vec![false; body.vertex_count()];
             for &v in indices.iter().chain(&pinned) {
                 taken[v as usize] = true;
@@ -440,6 +447,13 @@ impl Fitter {
         deformer
             .set_controls(&indices)
             .map_err(|e| FitError::Deform(e.to_string()))?;
+        if let Some(dir) = std::env::var_os("FITSTATION_DUMP") {
+            let _ = crate::mesh::io::write_obj(
+                &std::path::Path::new(&dir).join("candidate.obj"),
+                &body,
+            );
+            eprintln!("candidate params: {params:?}");
+        }
         self.subject = Some(SubjectState {
             plan,
             dense,

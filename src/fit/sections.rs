@@ -21,7 +21,8 @@
 //!
 //! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
 
-use super::correspond::{ControlSet, Part, Status};
+use super::correspond::{extreme_key, ControlSet, Part, Status, Variant};
+use crate::camera::{Camera, View};
 use glam::DVec3;
 
 /// Half-width of the running median along a part, in slices (about 3 cm each side at
@@ -45,6 +46,14 @@ impl Axis {
         match self {
             Axis::X => p.x,
             Axis::Z => p.z,
+        }
+    }
+    /// Outward residual beyond which an edge is taken as another part's (see
+    /// [`outward_inliers`]).
+    fn outward_tolerance(self) -> f64 {
+        match self {
+            Axis::X => FRONT_OUTWARD_TOLERANCE_M,
+            Axis::Z => OUTWARD_TOLERANCE_M,
         }
     }
     fn statuses(self) -> (Status, Status) {
@@ -78,6 +87,9 @@ pub struct SectionPlan {
     by_slice: Vec<Vec<u32>>,
     /// Vertices that receive dense targets (members of trunk and leg slices).
     pub vertices: Vec<u32>,
+    /// Per control: the candidate's own rim point at the control's height (see
+    /// [`SectionPlan::set_rims`]); empty until set.
+    rims: Vec<DVec3>,
 }
 
 /// Per-entry delta map `d(x) = alpha + beta * x` and the entry's centre height.
@@ -167,6 +179,77 @@ impl SectionPlan {
             }
         }
         plan
+    }
+
+    /// Records, per control, the candidate's rim point at the control's height: the point
+    /// of the part's true cross-section there (crossings of the part's mesh edges with the
+    /// horizontal plane) that lies furthest toward the control's side, as its view sees it.
+    ///
+    /// A slice is a band of vertices, and a band of a slanting row of the template holds
+    /// only part of the section, so its extreme vertex can sit well inside the section's
+    /// extreme; the silhouette edge found at the control's height is the section's rim,
+    /// so the scale and shift must be taken against the rim, not the vertex.
+    pub fn set_rims(
+        &mut self,
+        positions: &[DVec3],
+        edges: &[[u32; 2]],
+        labels: &[Part],
+        set: &ControlSet,
+        cameras: [&Camera; 2],
+    ) {
+        let variant = set.variant.unwrap_or(Variant::SliceExtremes);
+        let Some((y0, y1)) = positions
+            .iter()
+            .map(|p| p.y)
+            .fold(None, |acc: Option<(f64, f64)>, y| {
+                Some(acc.map_or((y, y), |(a, b)| (a.min(y), b.max(y))))
+            })
+        else {
+            return;
+        };
+        let bins = ((y1 - y0) / RIM_BIN_M).ceil().max(1.0) as usize;
+        let bin_of = |y: f64| (((y - y0) / RIM_BIN_M).max(0.0) as usize).min(bins - 1);
+        // Edges of the dense parts, bucketed by the height bins they span.
+        let mut buckets: Vec<Vec<u32>> = vec![Vec::new(); bins];
+        for (i, &[a, b]) in edges.iter().enumerate() {
+            let (la, lb) = (labels.get(a as usize), labels.get(b as usize));
+            if la != lb || !la.copied().is_some_and(dense_part) {
+                continue;
+            }
+            let (ya, yb) = (positions[a as usize].y, positions[b as usize].y);
+            for bucket in &mut buckets[bin_of(ya.min(yb))..=bin_of(ya.max(yb))] {
+                bucket.push(i as u32);
+            }
+        }
+        self.rims.clear();
+        for c in &set.controls {
+            let p = positions[c.vertex as usize];
+            let cam = match c.status.view() {
+                View::Front => cameras[0],
+                View::Side => cameras[1],
+            };
+            let mut best = p;
+            let mut best_key = extreme_key(variant, cam, c.status, p);
+            for &i in &buckets[bin_of(p.y)] {
+                let [a, b] = edges[i as usize];
+                if labels.get(a as usize) != Some(&c.part) {
+                    continue;
+                }
+                let (pa, pb) = (positions[a as usize], positions[b as usize]);
+                if (pa.y - p.y) * (pb.y - p.y) > 0.0 || (pa.y - pb.y).abs() < 1e-12 {
+                    continue;
+                }
+                let q = pa + (pb - pa) * ((p.y - pa.y) / (pb.y - pa.y));
+                // Edges of the control's own part only: the other leg and the arms are
+                // other parts.
+                let key = extreme_key(variant, cam, c.status, q);
+                if key > best_key {
+                    best_key = key;
+                    best = q;
+                }
+            }
+            self.rims.push(best);
+        }
     }
 
     /// Dense targets: writes into `out` (one entry per vertex of the mesh, resized) the
@@ -259,7 +342,12 @@ impl SectionPlan {
                 }
                 for &ci in &self.by_slice[s as usize] {
                     let c = &set.controls[ci as usize];
-                    let p = chain.axis.of(positions[c.vertex as usize]);
+                    let at = self
+                        .rims
+                        .get(ci as usize)
+                        .copied()
+                        .unwrap_or(positions[c.vertex as usize]);
+                    let p = chain.axis.of(at);
                     let t = targets
                         .get(ci as usize)
                         .copied()
@@ -302,7 +390,11 @@ impl SectionPlan {
                     scratch.trend_d.push(sign * (t - p));
                 }
             }
-            let keep = outward_inliers(&scratch.trend_y, &scratch.trend_d);
+            let keep = outward_inliers(
+                &scratch.trend_y,
+                &scratch.trend_d,
+                chain.axis.outward_tolerance(),
+            );
             let mut k = 0;
             for c in constraints.iter_mut() {
                 if c[side].is_some() {
@@ -353,6 +445,9 @@ impl SectionPlan {
     }
 }
 
+/// Height bins of the edge buckets in [`SectionPlan::set_rims`], metres.
+const RIM_BIN_M: f64 = 0.01;
+
 /// Fewest observed values a running-median window needs (fewer: filled in by
 /// interpolation between better-supported neighbours instead).
 const MIN_MEDIAN_SUPPORT: usize = 3;
@@ -381,8 +476,16 @@ fn running_median(values: &[Option<f64>], window: &mut Vec<f64>, out: &mut Vec<f
     }
 }
 
-/// Fills NaN entries of `v` by linear interpolation between the nearest finite ones
-/// (constant beyond the ends; `default` when none is finite).
+/// Gaps up to this many entries are bridged by linear interpolation; across a longer
+/// gap each side's value is held and the two meet in a linear ramp of this length in the
+/// gap's middle. A long unobserved stretch (the shoulders under the arms in the front
+/// view) says nothing about a trend between its ends: holding the nearest observation
+/// keeps the candidate's own shape there, scaled as its nearest observed neighbour.
+const RAMP_ENTRIES: usize = 2 * SMOOTH_HALF_WINDOW + 1;
+
+/// Fills NaN entries of `v` from the nearest finite ones: linear interpolation across
+/// short gaps, hold-and-ramp across long ones (see [`RAMP_ENTRIES`]), constant beyond the
+/// ends; `default` when none is finite.
 fn fill(v: &mut [f64], default: f64) {
     let known: Vec<usize> = (0..v.len()).filter(|&i| v[i].is_finite()).collect();
     if known.is_empty() {
@@ -396,7 +499,15 @@ fn fill(v: &mut [f64], default: f64) {
         let next = known.partition_point(|&k| k < i);
         v[i] = match (next.checked_sub(1).map(|j| known[j]), known.get(next)) {
             (Some(a), Some(&b)) => {
-                let t = (i - a) as f64 / (b - a) as f64;
+                let gap = b - a - 1;
+                let t = if gap <= RAMP_ENTRIES {
+                    (i - a) as f64 / (b - a) as f64
+                } else {
+                    // Ramp over RAMP_ENTRIES + 1 steps centred in the gap.
+                    let ramp = RAMP_ENTRIES as f64 + 1.0;
+                    let start = a as f64 + 0.5 * ((b - a) as f64 - ramp);
+                    ((i as f64 - start) / ramp).clamp(0.0, 1.0)
+                };
                 v[a] * (1.0 - t) + v[b] * t
             }
             (Some(a), None) => v[a],
@@ -408,6 +519,10 @@ fn fill(v: &mut [f64], default: f64) {
 
 /// Outward residual (metres) beyond which an edge is taken as another part's.
 const OUTWARD_TOLERANCE_M: f64 = 0.010;
+/// The same for the front view's x edges: there the trunk's occluders (arms hanging
+/// against it, a hand on the hip) add a whole limb's width, several centimetres, while the
+/// trunk's own edge turns out quickly under the armpits, which a smooth trend misses.
+const FRONT_OUTWARD_TOLERANCE_M: f64 = 0.025;
 /// Inward residual beyond which an edge is dropped (a notch or hole in the mask).
 const INWARD_TOLERANCE_M: f64 = 0.03;
 /// Rounds of the trimmed trend fit.
@@ -416,7 +531,7 @@ const TREND_ROUNDS: usize = 5;
 /// Which of the outward displacements `d` (at heights `y`) agree with their smooth trend:
 /// a quadratic in height fitted by trimmed least squares, trimming mainly outward (an
 /// occluding part can only push an edge out). Returns one flag per point.
-fn outward_inliers(y: &[f64], d: &[f64]) -> Vec<bool> {
+fn outward_inliers(y: &[f64], d: &[f64], outward_tolerance: f64) -> Vec<bool> {
     let n = y.len();
     let mut keep = vec![true; n];
     if n < 6 {
@@ -455,7 +570,7 @@ fn outward_inliers(y: &[f64], d: &[f64]) -> Vec<bool> {
         let next: Vec<bool> = (0..n)
             .map(|i| {
                 let r = d[i] - fit(y[i]);
-                r <= OUTWARD_TOLERANCE_M && r >= -INWARD_TOLERANCE_M
+                r <= outward_tolerance && r >= -INWARD_TOLERANCE_M
             })
             .collect();
         if next == keep {
@@ -485,7 +600,7 @@ mod tests {
             *v += 0.05;
         }
         d[50] -= 0.015;
-        let keep = outward_inliers(&y, &d);
+        let keep = outward_inliers(&y, &d, OUTWARD_TOLERANCE_M);
         for (i, k) in keep.iter().enumerate() {
             assert_eq!(*k, !(20..35).contains(&i), "sample {i}");
         }
@@ -499,6 +614,16 @@ mod tests {
         let mut none = vec![f64::NAN; 3];
         fill(&mut none, 7.0);
         assert_eq!(none, vec![7.0; 3]);
+        // A long gap holds each side and ramps in the middle.
+        let n = 3 * RAMP_ENTRIES;
+        let mut long = vec![f64::NAN; n];
+        long[0] = 1.0;
+        long[n - 1] = 2.0;
+        fill(&mut long, 0.0);
+        assert_eq!(long[1], 1.0);
+        assert_eq!(long[n - 2], 2.0);
+        assert!((long[(n - 1) / 2] - 1.5).abs() < 0.1, "{long:?}");
+        assert!(long.windows(2).all(|w| w[1] >= w[0]), "monotone {long:?}");
     }
 
     #[test]
