@@ -56,6 +56,9 @@ pub struct FitOptions {
     /// Section-consistent dense targets on the trunk and legs ([`sections`]); off: only
     /// the paper's sparse extreme controls.
     pub dense_sections: bool,
+    /// First fit in two passes: the candidate is chosen again against the first pass's
+    /// fitted avatar and fitted from scratch.
+    pub reselect_candidate: bool,
 }
 
 impl Default for FitOptions {
@@ -69,6 +72,7 @@ impl Default for FitOptions {
             search: SearchOptions::default(),
             library_size: 252,
             dense_sections: true,
+            reselect_candidate: true,
         }
     }
 }
@@ -224,9 +228,51 @@ impl Fitter {
             ..Default::default()
         };
         if !warm {
-            self.first_fit(calib, front, side, obs)?;
+            self.first_fit(calib, front, side, obs, None)?;
+            let rounds = self.opts.first_fit_rounds;
+            self.rounds(views, false, rounds, &mut stats)?;
+            if self.opts.reselect_candidate {
+                // Second pass: choose the candidate again against the fitted avatar's
+                // sections, which (unlike the raw silhouettes) have the arms and the other
+                // leg told apart; then fit that candidate from scratch.
+                if let Some(d) = self.avatar_descriptor() {
+                    self.first_fit(calib, front, side, obs, Some(&d))?;
+                    stats = FitStats {
+                        warm,
+                        ..Default::default()
+                    };
+                    self.rounds(views, false, rounds, &mut stats)?;
+                }
+            }
+        } else {
+            self.rounds(views, true, 1, &mut stats)?;
         }
-        let rounds = if warm { 1 } else { self.opts.first_fit_rounds };
+        let Some(s) = self.subject.as_mut() else {
+            return Err(FitError::NoTorso);
+        };
+        // Residual after the solve.
+        let mut sum = 0.0;
+        let mut n = 0usize;
+        for (c, t) in s.controls.controls.iter().zip(&self.targets) {
+            if let Some(t) = t {
+                sum += (s.positions[c.vertex as usize] - *t).length();
+                n += 1;
+            }
+        }
+        stats.residual_mm = if n > 0 { 1e3 * sum / n as f64 } else { 0.0 };
+        stats.controls = s.controls.controls.len();
+        stats.params = Some(s.params.clone());
+        Ok((&s.positions, stats))
+    }
+
+    /// Correspondence and decoding rounds on the current subject state.
+    fn rounds(
+        &mut self,
+        views: [(&crate::camera::Camera, MaskRef<'_>); 2],
+        warm: bool,
+        rounds: usize,
+        stats: &mut FitStats,
+    ) -> Result<(), FitError> {
         let Some(s) = self.subject.as_mut() else {
             return Err(FitError::NoTorso);
         };
@@ -292,19 +338,19 @@ impl Fitter {
                 }
             }
         }
-        // Residual after the solve.
-        let mut sum = 0.0;
-        let mut n = 0usize;
-        for (c, t) in s.controls.controls.iter().zip(&self.targets) {
-            if let Some(t) = t {
-                sum += (s.positions[c.vertex as usize] - *t).length();
-                n += 1;
-            }
-        }
-        stats.residual_mm = if n > 0 { 1e3 * sum / n as f64 } else { 0.0 };
-        stats.controls = s.controls.controls.len();
-        stats.params = Some(s.params.clone());
-        Ok((&s.positions, stats))
+        Ok(())
+    }
+
+    /// Shape descriptor of the current avatar, in its own frame (soles at zero).
+    fn avatar_descriptor(&self) -> Option<shape::ShapeDescriptor> {
+        let s = self.subject.as_ref()?;
+        let floor = s.positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+        let lifted: Vec<DVec3> = s.positions.iter().map(|p| *p - DVec3::Y * floor).collect();
+        Some(shape::mesh_descriptor(
+            &lifted,
+            &self.edges,
+            &self.template_labels,
+        ))
     }
 
     /// The current avatar as a mesh (template triangles).
@@ -322,10 +368,14 @@ impl Fitter {
         front: MaskRef<'_>,
         side: MaskRef<'_>,
         obs: &Observation,
+        fitted: Option<&shape::ShapeDescriptor>,
     ) -> Result<(), FitError> {
         let f = (&calib.front, front);
         let sd = (&calib.side, side);
-        let observed = shape::observed_descriptor(f, sd, obs.stature_m, obs.torso_point);
+        let observed = match fitted {
+            Some(d) => d.clone(),
+            None => shape::observed_descriptor(f, sd, obs.stature_m, obs.torso_point),
+        };
         if observed
             .torso_width
             .iter()
@@ -548,6 +598,8 @@ fn shape_refine(
 ) -> ShapeParams {
     const STEP: f64 = 0.02;
     const DAMPING: f64 = 1e-4;
+    const LM_TRIES: usize = 4;
+    let debug = std::env::var_os("FITSTATION_DEBUG").is_some();
     let obs = observed.as_vec();
     let mut buf = Vec::new();
     let residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
@@ -610,24 +662,48 @@ fn shape_refine(
                 }
             }
         }
+        // Levenberg-Marquardt: raise the damping until the step lowers the cost.
         let trace = (0..NP).map(|i| a[i][i]).sum::<f64>().max(1e-12);
-        for (i, row) in a.iter_mut().enumerate() {
-            row[i] += DAMPING * trace;
+        let mut damping = DAMPING;
+        let mut improved = false;
+        for _ in 0..LM_TRIES {
+            let mut ad = a;
+            for (i, row) in ad.iter_mut().enumerate() {
+                row[i] += damping * trace;
+            }
+            let Some(delta) = solve_small(ad, g.map(|x| -x)) else {
+                break;
+            };
+            let mut q = p.clone();
+            for (j, d) in delta.iter().enumerate() {
+                set(&mut q, j, get(&p, j) + d.clamp(-0.3, 0.3));
+            }
+            let rq = residual(&q, &mut buf);
+            if debug {
+                eprintln!(
+                    "shape refine: cost {:.3e} -> {:.3e} (damping {damping:.0e})",
+                    cost(&r),
+                    cost(&rq)
+                );
+            }
+            if cost(&rq) < cost(&r) {
+                p = q;
+                r = rq;
+                improved = true;
+                break;
+            }
+            damping *= 10.0;
         }
-        let Some(delta) = solve_small(a, g.map(|x| -x)) else {
+        if !improved {
             break;
-        };
-        let mut q = p.clone();
-        for (j, d) in delta.iter().enumerate() {
-            set(&mut q, j, get(&p, j) + d.clamp(-0.3, 0.3));
         }
-        let rq = residual(&q, &mut buf);
-        if cost(&rq) < cost(&r) {
-            p = q;
-            r = rq;
-        } else {
-            break;
-        }
+    }
+    if debug {
+        let st = observed.stature_m;
+        eprintln!(
+            "shape residual mm: {:?}",
+            r.iter().map(|x| (x * st * 1e3).round()).collect::<Vec<_>>()
+        );
     }
     p
 }
