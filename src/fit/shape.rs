@@ -16,9 +16,10 @@ use crate::camera::Camera;
 use glam::DVec3;
 
 /// Heights (fractions of stature) at which the torso is sampled: from just above the
-/// crotch (about 0.47 of stature on adults) to below the armpits (about 0.72).
-pub const TORSO_LEVELS: [f64; 12] = [
-    0.50, 0.52, 0.54, 0.56, 0.58, 0.60, 0.62, 0.64, 0.66, 0.68, 0.70, 0.72,
+/// crotch (about 0.47 of stature on adults) to just below the armpits (about 0.75): the
+/// top level carries the chest, which the second fitting pass needs to tell bodies apart.
+pub const TORSO_LEVELS: [f64; 13] = [
+    0.50, 0.52, 0.54, 0.56, 0.58, 0.60, 0.62, 0.64, 0.66, 0.68, 0.70, 0.72, 0.74,
 ];
 /// Heights (fractions of stature) at which the thighs are sampled (below the crotch).
 pub const THIGH_LEVELS: [f64; 2] = [0.40, 0.43];
