@@ -33,6 +33,8 @@ use std::sync::Arc;
 /// Gauss-Newton steps of one decode (a warm refit is one decode; convergence continues
 /// over the following frames).
 const DECODE_ITERATIONS_PER_SOLVE: usize = 8;
+/// Correspondence rounds of an intermediate pass of the first fit.
+const INTERMEDIATE_ROUNDS: usize = 2;
 /// Decodes per correspondence round of a first fit.
 const FIRST_FIT_SOLVES: usize = 4;
 
@@ -56,9 +58,9 @@ pub struct FitOptions {
     /// Section-consistent dense targets on the trunk and legs ([`sections`]); off: only
     /// the paper's sparse extreme controls.
     pub dense_sections: bool,
-    /// First fit in two passes: the candidate is chosen again against the first pass's
-    /// fitted avatar and fitted from scratch.
-    pub reselect_candidate: bool,
+    /// Passes of the first fit: after the first, the candidate is chosen again against
+    /// the previous pass's fitted avatar and fitted from scratch.
+    pub candidate_passes: usize,
 }
 
 impl Default for FitOptions {
@@ -72,7 +74,7 @@ impl Default for FitOptions {
             search: SearchOptions::default(),
             library_size: 252,
             dense_sections: true,
-            reselect_candidate: true,
+            candidate_passes: 3,
         }
     }
 }
@@ -228,20 +230,39 @@ impl Fitter {
             ..Default::default()
         };
         if !warm {
-            self.first_fit(calib, front, side, obs, None)?;
-            let rounds = self.opts.first_fit_rounds;
-            self.rounds(views, false, rounds, &mut stats)?;
-            if self.opts.reselect_candidate {
-                // Second pass: choose the candidate again against the fitted avatar's
-                // sections, which (unlike the raw silhouettes) have the arms and the other
-                // leg told apart; then fit that candidate from scratch.
-                if let Some(d) = self.avatar_descriptor() {
+            let passes = self.opts.candidate_passes.max(1);
+            for pass in 0..passes {
+                // After the first pass the candidate is chosen again against the fitted
+                // avatar's sections, which (unlike the raw silhouettes) have the arms and
+                // the other leg told apart, and that candidate is fitted from scratch.
+                // Intermediate passes only need the sections, not convergence.
+                let last = pass + 1 == passes;
+                let rounds = if last {
+                    self.opts.first_fit_rounds
+                } else {
+                    self.opts.first_fit_rounds.min(INTERMEDIATE_ROUNDS)
+                };
+                let t0 = std::time::Instant::now();
+                if pass > 0 {
+                    let Some(d) = self.avatar_descriptor() else {
+                        break;
+                    };
                     self.first_fit(calib, front, side, obs, Some(&d))?;
                     stats = FitStats {
                         warm,
                         ..Default::default()
                     };
-                    self.rounds(views, false, rounds, &mut stats)?;
+                } else {
+                    self.first_fit(calib, front, side, obs, None)?;
+                }
+                let t1 = std::time::Instant::now();
+                self.rounds(views, false, rounds, &mut stats)?;
+                if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                    eprintln!(
+                        "pass {pass}: setup {:.1} ms, rounds {:.1} ms",
+                        (t1 - t0).as_secs_f64() * 1e3,
+                        t1.elapsed().as_secs_f64() * 1e3
+                    );
                 }
             }
         } else {
@@ -398,7 +419,10 @@ impl Fitter {
             .ok_or(FitError::NoTorso)?;
         let mut params = self.library_params[best].clone();
         // 2. Gauss-Newton refinement of the macro parameters on the descriptor.
-        if self.opts.refine_shape {
+        // The raw silhouettes' descriptor mixes in arms and legs: refining the macro
+        // parameters against it is wasted effort when a later pass refines against the
+        // fitted sections.
+        if self.opts.refine_shape && (fitted.is_some() || self.opts.candidate_passes <= 1) {
             params = shape_refine(
                 &self.library,
                 &self.edges,
