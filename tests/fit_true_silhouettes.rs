@@ -79,6 +79,9 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
         .collect()
 }
 
+/// Largest error of one girth on one subject, mm.
+const GIRTH_TOLERANCE_MM: f64 = 35.0;
+
 #[test]
 fn fit_on_true_silhouettes_recovers_girths() {
     let lib = Arc::new(ShapeLibrary::load_default().expect("library"));
@@ -92,10 +95,10 @@ fn fit_on_true_silhouettes_recovers_girths() {
                 );
             }
             for (k, got, want) in rows {
-                // Not yet the targets (chest 14, waist/hip 12, thigh 6 mm; the README
-                // has the measured errors): a guard against a broken fit (errors of hundreds
-                // of mm, or none at all), to tighten as the fit improves.
-                let tol = if k == "stature" { 8.0 } else { 0.15 * want };
+                // The targets are mean errors over the evaluation set (chest 14,
+                // waist/hip 12, thigh 6 mm; README); one subject may sit further out, but
+                // not beyond 2.5 times the chest tolerance (a broken stage gives hundreds).
+                let tol = if k == "stature" { 8.0 } else { GIRTH_TOLERANCE_MM };
                 assert!(
                     (got - want).abs() < tol,
                     "seed {seed} {variant:?} {k}: {got:.1} vs {want:.1}"
