@@ -126,6 +126,9 @@ pub struct EvalRow {
     pub landmark_error_mm: BTreeMap<String, f64>,
     pub timings_ms: BTreeMap<String, StageTiming>,
     pub profile: Vec<ProfileSample>,
+    /// Largest frame-to-frame change of each shown measurement after settling, mm
+    /// (report.json `settled_step_mm`, when present).
+    pub settled_step_mm: BTreeMap<String, f64>,
 }
 
 /// Scores `result` against the truth in `truth_dir`.
@@ -168,7 +171,18 @@ pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalErr
     let landmark_error_mm = landmark_errors(&truth, &result.report_json);
     let timings_ms = timings(&result.report_json);
     let profile = girth_profile(&true_mesh, &result.avatar);
+    let settled_step_mm = result
+        .report_json
+        .get("settled_step_mm")
+        .and_then(|m| m.as_object())
+        .map(|m| {
+            m.iter()
+                .filter_map(|(k, v)| v.as_f64().map(|v| (k.clone(), v)))
+                .collect()
+        })
+        .unwrap_or_default();
     Ok(EvalRow {
+        settled_step_mm,
         subject,
         measurements,
         surface,
@@ -444,6 +458,26 @@ impl EvalTable {
             s.push_str("\nlandmark               mean error mm\n");
             for (k, v) in lm {
                 s.push_str(&format!("{k:<22} {v:>8.1}\n"));
+            }
+        }
+        let mut steps: BTreeMap<&String, (f64, f64, usize)> = BTreeMap::new();
+        for r in &self.rows {
+            for (k, v) in &r.settled_step_mm {
+                let e = steps.entry(k).or_insert((0.0, 0.0, 0));
+                e.0 = e.0.max(*v);
+                e.1 += v;
+                e.2 += 1;
+            }
+        }
+        if !steps.is_empty() {
+            s.push_str(
+                "\nshown value, frame-to-frame change after settling   mean mm   worst mm\n",
+            );
+            for (k, (worst, sum, n)) in steps {
+                s.push_str(&format!(
+                    "{k:<50} {:>8.1} {worst:>9.1}\n",
+                    sum / n.max(1) as f64
+                ));
             }
         }
         let t = self.timing_summary();

@@ -226,6 +226,7 @@ pub fn run_offline(
         .into_iter()
         .map(|(k, v)| (k, round1(v).into()))
         .collect();
+    let settled_steps = settled_steps(&series);
     let landmarks: serde_json::Map<String, serde_json::Value> = proc_
         .last_landmarks
         .iter()
@@ -242,6 +243,7 @@ pub fn run_offline(
         "timings_ms": timings.to_json(),
         "stability_mm": stab,
         "max_frame_step_mm": steps,
+        "settled_step_mm": settled_steps,
         "landmarks": landmarks,
         "fit": proc_.last_fit,
         "messages": messages,
@@ -252,6 +254,33 @@ pub fn run_offline(
         avatar: proc_.avatar().map(|a| (*a).clone()),
         last,
     }
+}
+
+/// Largest change of each shown (smoothed) measurement between consecutive fitted frames
+/// once its window is full ([`crate::pipeline::smooth::WINDOW`] fits): what a shopper
+/// sees the value do after it has settled. Empty before that many fits.
+fn settled_steps(series: &[serde_json::Value]) -> serde_json::Map<String, serde_json::Value> {
+    let mut out = serde_json::Map::new();
+    let rows: Vec<&serde_json::Map<String, serde_json::Value>> = series
+        .iter()
+        .filter_map(|r| r.as_object())
+        .skip(crate::pipeline::smooth::WINDOW.saturating_sub(1))
+        .collect();
+    for key in MEASUREMENT_KEYS {
+        let values: Vec<f64> = rows
+            .iter()
+            .filter_map(|r| r.get(key).and_then(|v| v.as_f64()))
+            .collect();
+        if values.len() < 2 {
+            continue;
+        }
+        let step = values
+            .windows(2)
+            .map(|w| (w[1] - w[0]).abs())
+            .fold(0.0, f64::max);
+        out.insert(key.to_string(), round1(step).into());
+    }
+    out
 }
 
 fn round1(v: f64) -> f64 {
