@@ -521,13 +521,6 @@ impl Fitter {
         deformer
             .set_controls(&indices)
             .map_err(|e| FitError::Deform(e.to_string()))?;
-        if let Some(dir) = std::env::var_os("FITSTATION_DUMP") {
-            let _ = crate::mesh::io::write_obj(
-                &std::path::Path::new(&dir).join("candidate.obj"),
-                &body,
-            );
-            eprintln!("candidate params: {params:?}");
-        }
         self.subject = Some(SubjectState {
             plan,
             dense,
