@@ -98,7 +98,11 @@ fn fit_on_true_silhouettes_recovers_girths() {
                 // The targets are mean errors over the evaluation set (chest 14,
                 // waist/hip 12, thigh 6 mm; README); one subject may sit further out, but
                 // not beyond 2.5 times the chest tolerance (a broken stage gives hundreds).
-                let tol = if k == "stature" { 8.0 } else { GIRTH_TOLERANCE_MM };
+                let tol = if k == "stature" {
+                    8.0
+                } else {
+                    GIRTH_TOLERANCE_MM
+                };
                 assert!(
                     (got - want).abs() < tol,
                     "seed {seed} {variant:?} {k}: {got:.1} vs {want:.1}"

@@ -98,6 +98,8 @@ struct Delta {
     alpha: f64,
     beta: f64,
     y: f64,
+    /// The coordinate the scale is taken about (the section's centre).
+    mid: f64,
 }
 
 /// Scratch of [`SectionPlan::targets`].
@@ -275,27 +277,37 @@ impl SectionPlan {
             if sx.is_none() && sz.is_none() {
                 continue;
             }
+            let is_leg = matches!(set.slice_part.get(s), Some(Part::LeftLeg | Part::RightLeg));
             for &v in members {
                 let p = positions[v as usize];
                 let mut q = p;
-                if let Some((c, e)) = sx {
-                    q.x += self.blended(scratch, c, e, p.y, p.x);
+                let dx = sx.map(|(c, e)| self.blended(scratch, c, e, p.y));
+                if let Some(d) = dx {
+                    q.x += d.alpha + d.beta * p.x;
                 }
                 if let Some((c, e)) = sz {
-                    q.z += self.blended(scratch, c, e, p.y, p.z);
+                    let mut d = self.blended(scratch, c, e, p.y);
+                    // The side view sees both legs as one: its depth is each leg's depth
+                    // plus their stagger, an upper bound. A leg's depth is scaled by no more
+                    // than its width (the front view sees each leg alone), about the same
+                    // centre.
+                    if let Some(x) = dx.filter(|x| is_leg && x.beta < d.beta) {
+                        d.alpha += (d.beta - x.beta) * d.mid;
+                        d.beta = x.beta;
+                    }
+                    q.z += d.alpha + d.beta * p.z;
                 }
                 out[v as usize] = Some(q);
             }
         }
     }
 
-    /// Delta of coordinate `x` at height `y` in entry `e` of chain `c`, blended linearly
-    /// with the neighbouring entry on the side of `y`.
-    fn blended(&self, scratch: &SectionScratch, c: u32, e: u32, y: f64, x: f64) -> f64 {
+    /// The map of entry `e` of chain `c` at height `y`, blended linearly with the
+    /// neighbouring entry on the side of `y`.
+    fn blended(&self, scratch: &SectionScratch, c: u32, e: u32, y: f64) -> Delta {
         let ds = &scratch.deltas[c as usize];
         let e = e as usize;
         let here = ds[e];
-        let at = |d: &Delta| d.alpha + d.beta * x;
         let other = if y >= here.y {
             e + 1
         } else {
@@ -304,9 +316,14 @@ impl SectionPlan {
         match ds.get(other) {
             Some(o) if (o.y - here.y).abs() > 1e-9 => {
                 let t = ((y - here.y) / (o.y - here.y)).clamp(0.0, 1.0);
-                at(&here) * (1.0 - t) + at(o) * t
+                Delta {
+                    alpha: here.alpha * (1.0 - t) + o.alpha * t,
+                    beta: here.beta * (1.0 - t) + o.beta * t,
+                    y,
+                    mid: here.mid * (1.0 - t) + o.mid * t,
+                }
             }
-            _ => at(&here),
+            _ => here,
         }
     }
 
@@ -440,6 +457,7 @@ impl SectionPlan {
                 alpha: smooth_shift[e] - beta * mids[e],
                 beta,
                 y: scratch.centres[e],
+                mid: mids[e],
             });
         }
     }
