@@ -1,11 +1,16 @@
 //! Measurement smoothing over frames: each measurement keeps a short window of recent
-//! values; the shown value is their median (robust to a bad frame) and the stability is
-//! their spread (max - min, mm), which falls as the fit settles.
+//! values; the shown value is their trimmed mean (the mean of the window without its
+//! [`TRIM`] lowest and highest values: robust to bad frames like a median, but it moves
+//! smoothly where a median jumps between neighbouring order statistics) and the
+//! stability is their spread (max - min, mm), which falls as the fit settles.
 
 use std::collections::VecDeque;
 
 /// Frames a measurement's window holds.
 pub const WINDOW: usize = 9;
+/// Values dropped from each end of the sorted window before averaging (a full window
+/// tolerates this many bad frames on either side).
+pub const TRIM: usize = 2;
 
 /// A sliding window of one measurement's recent values (mm).
 #[derive(Debug, Clone, Default)]
@@ -23,7 +28,8 @@ impl SmoothedValue {
         }
         self.recent.push_back(value_mm);
     }
-    /// Median of the window (None before the first value).
+    /// Trimmed mean of the window (None before the first value): [`TRIM`] values dropped
+    /// from each end, fewer while the window is filling (always at least one kept).
     pub fn value(&self) -> Option<f64> {
         if self.recent.is_empty() {
             return None;
@@ -31,11 +37,9 @@ impl SmoothedValue {
         let mut v: Vec<f64> = self.recent.iter().copied().collect();
         v.sort_by(|a, b| a.total_cmp(b));
         let n = v.len();
-        Some(if n % 2 == 1 {
-            v[n / 2]
-        } else {
-            0.5 * (v[n / 2 - 1] + v[n / 2])
-        })
+        let trim = TRIM.min((n - 1) / 2);
+        let kept = &v[trim..n - trim];
+        Some(kept.iter().sum::<f64>() / kept.len() as f64)
     }
     /// Spread of the window (mm); infinite until three values are in.
     pub fn stability(&self) -> f64 {
@@ -70,13 +74,20 @@ mod tests {
     use super::*;
 
     #[test]
-    fn median_ignores_one_outlier_and_stability_settles() {
+    fn trimmed_mean_ignores_outliers_and_stability_settles() {
         let mut s = SmoothedValue::default();
         assert_eq!(s.value(), None);
         for v in [900.0, 901.0, 1500.0, 899.0, 900.5] {
             s.push(v);
         }
-        assert_eq!(s.value(), Some(900.5));
+        // Five values: one dropped from each end; the outlier goes.
+        assert!((s.value().unwrap() - (900.0 + 900.5 + 901.0) / 3.0).abs() < 1e-9);
+        for v in [10.0, 2000.0, 901.0, 900.0] {
+            s.push(v);
+        }
+        // A full window tolerates two outliers on one side and one on the other.
+        let v = s.value().unwrap();
+        assert!((899.0..=901.0).contains(&v), "{v}");
         assert!(s.stability() > 500.0);
         for _ in 0..WINDOW {
             s.push(900.0);
