@@ -229,3 +229,51 @@ fn fit_on_stills_with_empty_scene_writes_outputs() {
     );
     assert!(out.join("avatar.obj").exists());
 }
+
+#[test]
+fn a_body_cut_off_by_the_frame_is_refused_with_the_reason() {
+    let dir = tmp("cutoff");
+    let rec = synth(&dir, 9, 2);
+    // Shift the front still and its empty scene up by a third of the picture: the head
+    // leaves the top edge, the backdrop still matches.
+    let shifted = |k: usize| -> PathBuf {
+        let src = rec.join("front").join(format!("{k:06}.png"));
+        let img = image::open(&src).unwrap().to_rgb8();
+        let (w, h) = img.dimensions();
+        let dy = h / 3;
+        let out = image::RgbImage::from_fn(w, h, |x, y| {
+            let sy = (y + dy).min(h - 1);
+            *img.get_pixel(x, sy)
+        });
+        let p = dir.join(format!("shifted_{k}.png"));
+        out.save(&p).unwrap();
+        p
+    };
+    let (front, front_bg) = (shifted(10), shifted(0));
+    let side = |k: usize| {
+        rec.join("side")
+            .join(format!("{k:06}.png"))
+            .to_string_lossy()
+            .into_owned()
+    };
+    let out = dir.join("out");
+    let o = fitstation(&[
+        "fit",
+        "--front",
+        front.to_str().unwrap(),
+        "--side",
+        &side(10),
+        "--front-bg",
+        front_bg.to_str().unwrap(),
+        "--side-bg",
+        &side(0),
+        "--calib",
+        rec.join("station.yaml").to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success(), "a cut-off body must not be fitted");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("cut off"), "{err}");
+    assert!(!out.exists(), "nothing may be written");
+}
