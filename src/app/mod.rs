@@ -1028,7 +1028,8 @@ impl StationApp {
     }
 
     fn start_recording(&mut self) {
-        let dir = PathBuf::from(&self.record_dir);
+        // Each recording gets its own folder under the one in the field.
+        let dir = record::session_dir(Path::new(&self.record_dir), std::time::SystemTime::now());
         match record::Recorder::start(&dir, self.calibration.as_ref(), self.fps) {
             Ok(r) => {
                 if self.calibration.is_none() {
