@@ -3,11 +3,12 @@
 //! egui image (which samples an sRGB texture and blends every pixel); the overlays are
 //! painted by egui on top.
 //!
-//! The frame is box-filtered on the CPU to about the view's size (see
-//! [`super::downscale_by`]) and uploaded once per new frame (`generation`). Texture
-//! values are the frame's sRGB bytes, written as they are to the (non-sRGB) window
-//! surface, as egui's own colours are.
+//! The frame is box-filtered on the `process` thread to about the view's size (see
+//! [`super::display`]) and uploaded once per new frame (`generation`); the texture is
+//! reused while the size stays. Texture values are the frame's sRGB bytes, written as
+//! they are to the (non-sRGB) window surface, as egui's own colours are.
 
+use super::display::DisplayImage;
 use eframe::egui_wgpu::{self, wgpu};
 use std::sync::Arc;
 
@@ -117,11 +118,12 @@ impl FrameViewResources {
         device: &wgpu::Device,
         queue: &wgpu::Queue,
         slot: usize,
-        image: &egui::ColorImage,
+        image: &DisplayImage,
         generation: u64,
     ) {
-        let size = [image.size[0] as u32, image.size[1] as u32];
-        if size[0] == 0 || size[1] == 0 || image.pixels.len() != image.size[0] * image.size[1] {
+        let size = image.size;
+        let pixels = size[0] as usize * size[1] as usize;
+        if pixels == 0 || image.rgba.len() != 4 * pixels {
             return;
         }
         let Some(entry) = self.views.get_mut(slot) else {
@@ -173,7 +175,7 @@ impl FrameViewResources {
                     origin: wgpu::Origin3d::ZERO,
                     aspect: wgpu::TextureAspect::All,
                 },
-                bytemuck::cast_slice(&image.pixels),
+                &image.rgba,
                 wgpu::TexelCopyBufferLayout {
                     offset: 0,
                     bytes_per_row: Some(4 * size[0]),
@@ -191,7 +193,7 @@ pub struct FrameViewCallback {
     /// 0 front, 1 side.
     pub slot: usize,
     /// The display image (uploaded when `generation` changes).
-    pub image: Arc<egui::ColorImage>,
+    pub image: Arc<DisplayImage>,
     pub generation: u64,
 }
 

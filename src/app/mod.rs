@@ -16,6 +16,7 @@
 pub mod avatar3d;
 pub mod calib_wizard;
 pub mod demo;
+pub mod display;
 pub mod export;
 pub mod flow;
 pub mod frame_view;
@@ -24,11 +25,11 @@ pub mod operator;
 pub mod record;
 pub mod runner;
 pub mod session;
+pub mod stats;
 
 pub use live::{run_live_cli, LiveArgs};
 
 use crate::camera::StationCalibration;
-use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FrameProcessor, FrameSource, MeasurementValue, ViewOverlay};
 use avatar3d::{AvatarCallback, AvatarResources, OrbitCamera, ViewPreset};
 use calib_wizard::{CalibrationWizard, WizardAction, WizardSettings, WizardStep, WizardView};
@@ -45,8 +46,6 @@ use std::time::Instant;
 /// of their own (on a software renderer every filled pixel costs, every frame).
 pub const SCREEN_BACKGROUND_RGB: [u8; 3] = [22, 23, 27];
 
-/// Longest side of a camera frame as uploaded for display (pixels).
-pub const DISPLAY_MAX_PX: u32 = 640;
 /// A measurement whose recent spread is below this is shown as settled (mm).
 pub const STABLE_MM: f64 = 3.0;
 /// Spread above which a measurement is shown as unstable (mm).
@@ -156,7 +155,10 @@ pub fn run(
                 source,
                 processor,
                 opts,
-                Box::new(move || ctx.request_repaint()),
+                // A zero delay would make egui paint twice per snapshot (its
+                // `request_repaint` always schedules a second pass); any non-zero
+                // delay asks for exactly one.
+                Box::new(move || ctx.request_repaint_after(SNAPSHOT_REPAINT_DELAY)),
                 summary,
             )?;
             Ok(Box::new(app))
@@ -186,6 +188,16 @@ pub struct RunSummary {
     /// CPU seconds per thread group (`capture`, `process`, the screen's main thread,
     /// `llvmpipe` for Mesa's software rasteriser...), live threads only.
     pub thread_cpu: Vec<(String, f64)>,
+    /// Screen frames presented (see [`stats`]).
+    pub presented_frames: u64,
+    /// Frame rate from the intervals between presents (over the last
+    /// [`stats::WINDOW`] frames).
+    pub frame_rate: Option<stats::FrameRate>,
+    /// From the start of the screen's work on a frame to its present (ms).
+    pub frame_to_present: Option<stats::Summary>,
+    /// From a frame pair leaving the source to the present of the screen frame that
+    /// first shows its fit (ms).
+    pub latency: Option<stats::Summary>,
 }
 
 /// User + system CPU seconds of this process from `/proc/self/stat` (Linux).
@@ -222,6 +234,28 @@ impl std::fmt::Display for RunSummary {
             self.recent_snapshot_fps,
             self.dropped_pairs
         )?;
+        if let Some(r) = &self.frame_rate {
+            writeln!(
+                f,
+                "screen: {:.1} fps mean, {:.1} fps p5 (from {} presented frames){}",
+                r.mean_fps,
+                r.p5_fps,
+                self.presented_frames,
+                self.frame_to_present
+                    .map(|s| format!(
+                        "; start of work to present median {:.1} ms, p95 {:.1} ms",
+                        s.median, s.p95
+                    ))
+                    .unwrap_or_default()
+            )?;
+        }
+        if let Some(l) = &self.latency {
+            writeln!(
+                f,
+                "latency, pair leaves the source to its fit presented: median {:.1} ms, p95 {:.1} ms ({} fits)",
+                l.median, l.p95, l.count
+            )?;
+        }
         if let Some(cpu) = self.cpu_seconds {
             writeln!(
                 f,
@@ -314,16 +348,14 @@ enum Mode {
     Operator,
 }
 
-/// A camera view's texture and the size of the frame it came from.
 /// A camera view's display image ([`frame_view`] uploads it when `generation` changes)
 /// and the size of the frame it came from.
 struct ViewTexture {
     /// 0 front, 1 side.
     slot: usize,
-    image: Arc<egui::ColorImage>,
+    image: Arc<display::DisplayImage>,
     generation: u64,
     frame_size: [u32; 2],
-    source: *const image::RgbImage,
 }
 
 enum ScreenshotState {
@@ -350,7 +382,6 @@ struct StationApp {
     mode: Mode,
     front_tex: Option<ViewTexture>,
     side_tex: Option<ViewTexture>,
-    downscale_scratch: DownscaleScratch,
     /// Size of each camera view on screen at the last frame (pixels).
     view_px: Option<[f32; 2]>,
     avatar_generation: u64,
@@ -363,8 +394,13 @@ struct StationApp {
     user_zoomed: bool,
     ui_meter: RateMeter,
     snap_meter: RateMeter,
-    ui_stats: TimingStats,
-    pipeline_stats: TimingStats,
+    ui_stats: stats::RollingStats,
+    pipeline_stats: stats::RollingStats,
+    /// Ends of the screen's frames (frame rate, latency to the present).
+    clock: stats::FrameClock,
+    /// The timings table as last summarised, and when (seconds since start).
+    timings_table: Vec<(String, Option<f64>, stats::Summary)>,
+    timings_table_s: f64,
     frames: u64,
     snapshots_shown: u64,
     screenshot_at: Option<u64>,
@@ -432,7 +468,6 @@ impl StationApp {
             },
             front_tex: None,
             side_tex: None,
-            downscale_scratch: DownscaleScratch::default(),
             view_px: None,
             avatar_generation: 0,
             shown_avatar: None,
@@ -441,8 +476,11 @@ impl StationApp {
             user_zoomed: false,
             ui_meter: RateMeter::default(),
             snap_meter: RateMeter::default(),
-            ui_stats: TimingStats::default(),
-            pipeline_stats: TimingStats::default(),
+            ui_stats: stats::RollingStats::default(),
+            pipeline_stats: stats::RollingStats::default(),
+            clock: stats::FrameClock::default(),
+            timings_table: Vec::new(),
+            timings_table_s: f64::NEG_INFINITY,
             frames: 0,
             snapshots_shown: 0,
             screenshot_at: opts.screenshot.as_ref().and(exit_after),
@@ -478,10 +516,15 @@ impl StationApp {
         }
     }
 
-    /// Takes the newest snapshot, feeds the flow, uploads changed frames.
+    /// Takes the newest snapshot, feeds the flow, takes its display images.
     fn poll_snapshot(&mut self) {
         let now = self.now_s();
-        if let Some(snap) = self.runner.snapshots.try_take() {
+        if let Some(shown) = self.runner.snapshots.try_take() {
+            let runner::ScreenSnapshot {
+                snap,
+                front_display,
+                side_display,
+            } = shown;
             self.snapshots_shown += 1;
             self.snap_meter.tick(now);
             self.pipeline_stats.add_all(&snap.timings_ms);
@@ -493,27 +536,12 @@ impl StationApp {
                     f();
                 }
             }
-            let t0 = Instant::now();
-            if let Some(f) = &snap.front_frame {
-                upload(
-                    &mut self.front_tex,
-                    0,
-                    f,
-                    self.view_px,
-                    &mut self.downscale_scratch,
-                );
+            if let Some(d) = front_display {
+                show_image(&mut self.front_tex, 0, d);
             }
-            if let Some(f) = &snap.side_frame {
-                upload(
-                    &mut self.side_tex,
-                    1,
-                    f,
-                    self.view_px,
-                    &mut self.downscale_scratch,
-                );
+            if let Some(d) = side_display {
+                show_image(&mut self.side_tex, 1, d);
             }
-            self.ui_stats
-                .add("upload", t0.elapsed().as_secs_f64() * 1e3);
             if self.wizard_live {
                 if let (Some(w), Some(f), Some(sd)) =
                     (&self.wizard, &snap.front_frame, &snap.side_frame)
@@ -687,34 +715,42 @@ impl StationApp {
         }
         ui.separator();
         ui.heading("Timings");
+        let now = self.now_s();
+        if now - self.timings_table_s >= TIMINGS_REFRESH_S {
+            self.timings_table_s = now;
+            self.timings_table = self.timings_rows();
+        }
         if let Some(s) = &self.current {
-            egui::Grid::new("timings").num_columns(3).show(ui, |ui| {
-                ui.label("stage");
-                ui.label("now");
-                ui.label("median / p95");
-                ui.end_row();
-                let summary = self.pipeline_stats.summary();
-                for (stage, ms) in &s.timings_ms {
-                    ui.label(stage);
-                    ui.label(format!("{ms:.2} ms"));
-                    if let Some((_, sum)) = summary.iter().find(|(n, _)| n == stage) {
+            if self.mode == Mode::Operator {
+                egui::Grid::new("timings").num_columns(3).show(ui, |ui| {
+                    ui.label("stage");
+                    ui.label("now");
+                    ui.label("median / p95");
+                    ui.end_row();
+                    for (stage, latest, sum) in &self.timings_table {
+                        ui.label(stage);
+                        ui.label(latest.map(|ms| format!("{ms:.2} ms")).unwrap_or_default());
                         ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
+                        ui.end_row();
                     }
-                    ui.end_row();
+                });
+            } else {
+                // The kiosk shows the main figures only: every covered pixel costs on a
+                // software renderer, every frame (Operator mode has the whole table).
+                for (stage, _, sum) in self
+                    .timings_table
+                    .iter()
+                    .filter(|(n, _, _)| KIOSK_TIMINGS.contains(&n.as_str()))
+                {
+                    ui.label(
+                        RichText::new(format!(
+                            "{stage}: {:.1} / {:.1} ms (median / p95)",
+                            sum.median, sum.p95
+                        ))
+                        .small(),
+                    );
                 }
-                let threads = self.runner.controls.thread_stats().summary();
-                let screen = self
-                    .ui_stats
-                    .summary()
-                    .into_iter()
-                    .map(|(n, v)| (format!("screen {n}"), v));
-                for (stage, sum) in threads.into_iter().chain(screen) {
-                    ui.label(stage);
-                    ui.label("");
-                    ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
-                    ui.end_row();
-                }
-            });
+            }
             ui.label(format!("frame {}  phase {:?}", s.frame_index, s.phase));
             if self.mode == Mode::Operator {
                 for m in s.messages.iter().take(MESSAGES_SHOWN) {
@@ -722,6 +758,42 @@ impl StationApp {
                 }
             }
         }
+    }
+
+    /// The timings table: the station's stages (with the current snapshot's value),
+    /// the pipeline threads, the screen's own work and its frame clock.
+    fn timings_rows(&self) -> Vec<(String, Option<f64>, stats::Summary)> {
+        let latest = |stage: &str| {
+            self.current
+                .as_ref()
+                .and_then(|s| s.timings_ms.iter().find(|(n, _)| n == stage))
+                .map(|(_, ms)| *ms)
+        };
+        let mut rows: Vec<(String, Option<f64>, stats::Summary)> = self
+            .pipeline_stats
+            .summary()
+            .into_iter()
+            .map(|(n, v)| {
+                let now = latest(&n);
+                (n, now, v)
+            })
+            .collect();
+        rows.extend(
+            self.runner
+                .controls
+                .thread_stats()
+                .summary()
+                .into_iter()
+                .map(|(n, v)| (n, None, v)),
+        );
+        rows.extend(
+            self.ui_stats
+                .summary()
+                .into_iter()
+                .chain(self.clock.stats().summary())
+                .map(|(n, v)| (format!("screen {n}"), None, v)),
+        );
+        rows
     }
 
     fn operator_panel(&mut self, ui: &mut egui::Ui) {
@@ -956,7 +1028,8 @@ impl StationApp {
     }
 
     fn start_recording(&mut self) {
-        let dir = PathBuf::from(&self.record_dir);
+        // Each recording gets its own folder under the one in the field.
+        let dir = record::session_dir(Path::new(&self.record_dir), std::time::SystemTime::now());
         match record::Recorder::start(&dir, self.calibration.as_ref(), self.fps) {
             Ok(r) => {
                 if self.calibration.is_none() {
@@ -1049,6 +1122,13 @@ impl StationApp {
                     .map(|(n, v)| (format!("screen {n}"), v)),
             );
             s.ui_timings = all.into_iter().map(|(n, v)| (n, v.median, v.p95)).collect();
+            let clock = self.clock.stats();
+            s.presented_frames = self.clock.frames();
+            s.frame_rate = clock
+                .get(stats::FRAME_INTERVAL)
+                .map(|i| stats::FrameRate::from_intervals(&i));
+            s.frame_to_present = clock.get(stats::FRAME_TO_PRESENT);
+            s.latency = clock.get(stats::ARRIVAL_TO_PRESENT);
         }
     }
 
@@ -1066,7 +1146,14 @@ impl StationApp {
             .collect();
         let painter = ui.painter_at(avail);
         let ppp = ui.ctx().pixels_per_point();
-        self.view_px = Some([w * ppp, avail.height() * ppp]);
+        let view_px = Some([w * ppp, avail.height() * ppp]);
+        if self.view_px != view_px {
+            // The process thread prepares the next frames at this size.
+            self.view_px = view_px;
+            if let Ok(mut v) = self.runner.controls.view_px.lock() {
+                *v = view_px;
+            }
+        }
         let show_all = self.mode == Mode::Operator;
         let snap = self.current.as_ref();
         self.layout.front = draw_view(
@@ -1225,11 +1312,15 @@ impl eframe::App for StationApp {
         // costs (the window's clear colour is the background).
         egui::CentralPanel::no_frame().show(ui, |ui| self.views(ui));
 
-        self.ui_stats.add("frame", t0.elapsed().as_secs_f64() * 1e3);
-        if let Some(t) = self.pending_arrival.take() {
-            self.ui_stats
-                .add("arrival to screen", t.elapsed().as_secs_f64() * 1e3);
-        }
+        self.ui_stats.add("ui", t0.elapsed().as_secs_f64() * 1e3);
+        // The end of this frame (its present) is noted when egui-wgpu drops this
+        // callback; a 1-point rectangle in the window's corner, so it is not culled.
+        let probe = self.clock.probe(t0, self.pending_arrival.take());
+        ui.painter()
+            .add(eframe::egui_wgpu::Callback::new_paint_callback(
+                Rect::from_min_size(Pos2::ZERO, Vec2::splat(1.0)),
+                stats::FrameEndCallback { probe },
+            ));
         // Screenshot and exit handling (CLI --screenshot / --exit-after-frames): the
         // automatic screenshot is due after N frames and waits (at most
         // SCREENSHOT_GRACE_FRAMES more) for a frame that shows a fitted avatar.
@@ -1306,99 +1397,32 @@ fn stability_indicator(ui: &mut egui::Ui, spread_mm: f64) {
     });
 }
 
-/// Prepares `frame` for display in `slot` unless it is the frame already shown,
-/// box-filtered down to about `target_px` (the view's size on screen in pixels, when
-/// known); the paint callback uploads it once.
-fn upload(
-    slot: &mut Option<ViewTexture>,
-    index: usize,
-    frame: &Arc<image::RgbImage>,
-    target_px: Option<[f32; 2]>,
-    scratch: &mut DownscaleScratch,
-) {
-    let ptr = Arc::as_ptr(frame);
-    if slot.as_ref().is_some_and(|t| t.source == ptr) {
+/// Puts a new display image into `slot` (uploaded by the paint callback once).
+fn show_image(slot: &mut Option<ViewTexture>, index: usize, image: Arc<display::DisplayImage>) {
+    if slot.as_ref().is_some_and(|t| Arc::ptr_eq(&t.image, &image)) {
         return;
     }
-    let factor = display_factor(frame.width(), frame.height(), target_px);
-    let image = Arc::new(downscale_by(frame, factor, scratch));
-    let frame_size = [frame.width(), frame.height()];
     let generation = slot.as_ref().map_or(1, |t| t.generation + 1);
     *slot = Some(ViewTexture {
         slot: index,
+        frame_size: image.frame_size,
         image,
         generation,
-        frame_size,
-        source: ptr,
     });
 }
 
-/// Reusable buffers of [`downscale_by`].
-#[derive(Debug, Default)]
-pub struct DownscaleScratch {
-    row_sums: Vec<u32>,
-    pixels: Vec<Color32>,
-}
+/// Delay of the repaint asked for by a new snapshot (see [`run`]).
+const SNAPSHOT_REPAINT_DELAY: std::time::Duration = std::time::Duration::from_micros(1);
 
-/// Integer box-filter factor for showing a `w` x `h` frame in a view of `target_px`
-/// pixels: the largest factor that keeps the texture at least as large as the view
-/// (sampling stays sharp), and at least the one that brings the longer side down to
-/// [`DISPLAY_MAX_PX`].
-pub fn display_factor(w: u32, h: u32, target_px: Option<[f32; 2]>) -> u32 {
-    let cap = w.max(h).div_ceil(DISPLAY_MAX_PX).max(1);
-    let Some([tw, th]) = target_px.filter(|t| t[0] >= 1.0 && t[1] >= 1.0) else {
-        return cap;
-    };
-    let fit = (w as f32 / tw).max(h as f32 / th).floor().max(1.0) as u32;
-    fit.max(cap)
-}
+/// Timings rows shown in Kiosk mode (Operator mode shows them all).
+const KIOSK_TIMINGS: [&str; 3] = [
+    "process",
+    "screen ui to present",
+    "screen arrival to screen",
+];
 
-/// Box-filters a frame down by an integer factor (partial blocks at the right and bottom
-/// edges are left out, at most `factor - 1` pixels).
-pub fn downscale_by(
-    frame: &image::RgbImage,
-    factor: u32,
-    scratch: &mut DownscaleScratch,
-) -> egui::ColorImage {
-    let f = factor.max(1) as usize;
-    let (w, h) = (frame.width() as usize, frame.height() as usize);
-    let (ow, oh) = ((w / f).max(1), (h / f).max(1));
-    // A frame smaller than one block: shown as is.
-    let f = f.min(w).min(h).max(1);
-    let raw = frame.as_raw();
-    let n = (f * f) as u32;
-    scratch.pixels.clear();
-    scratch.pixels.reserve(ow * oh);
-    scratch.row_sums.clear();
-    scratch.row_sums.resize(ow * 3, 0);
-    for oy in 0..oh {
-        scratch.row_sums.fill(0);
-        for dy in 0..f {
-            let y = oy * f + dy;
-            let Some(row) = raw.get(y * w * 3..(y * w + ow * f) * 3) else {
-                break;
-            };
-            for (acc, block) in scratch
-                .row_sums
-                .chunks_exact_mut(3)
-                .zip(row.chunks_exact(3 * f))
-            {
-                for px in block.chunks_exact(3) {
-                    acc[0] += px[0] as u32;
-                    acc[1] += px[1] as u32;
-                    acc[2] += px[2] as u32;
-                }
-            }
-        }
-        scratch.pixels.extend(
-            scratch
-                .row_sums
-                .chunks_exact(3)
-                .map(|a| Color32::from_rgb((a[0] / n) as u8, (a[1] / n) as u8, (a[2] / n) as u8)),
-        );
-    }
-    egui::ColorImage::new([ow, oh], std::mem::take(&mut scratch.pixels))
-}
+/// How often the timings table is summarised again (seconds).
+const TIMINGS_REFRESH_S: f64 = 0.5;
 
 /// Repaint period while the hold-still countdown runs, and otherwise without new
 /// snapshots (timeouts, the recording light), milliseconds.
@@ -1662,37 +1686,6 @@ const DEFAULT_SCREENSHOT_FRAMES: u64 = 150;
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn downscale_keeps_aspect_and_averages() {
-        let mut img = image::RgbImage::new(1280, 720);
-        for (x, _, p) in img.enumerate_pixels_mut() {
-            *p = if x % 2 == 0 {
-                image::Rgb([200, 0, 0])
-            } else {
-                image::Rgb([0, 0, 100])
-            };
-        }
-        let mut scratch = DownscaleScratch::default();
-        let f = display_factor(1280, 720, None);
-        assert_eq!(f, 2);
-        let out = downscale_by(&img, f, &mut scratch);
-        assert_eq!(out.size, [640, 360]);
-        let c = out.pixels[1000];
-        assert_eq!((c.r(), c.g(), c.b()), (100, 0, 50));
-        let small = image::RgbImage::new(100, 50);
-        let f = display_factor(100, 50, None);
-        assert_eq!(downscale_by(&small, f, &mut scratch).size, [100, 50]);
-        // A view of 420 px: the texture stays at least that wide.
-        let f = display_factor(1280, 720, Some([420.0, 800.0]));
-        assert_eq!(f, 3);
-        let out = downscale_by(&img, f, &mut scratch);
-        assert_eq!(out.size, [426, 240]);
-        assert!(out.size[0] as f32 >= 420.0);
-        // Odd factor over alternating columns: 2 red + 1 blue or 1 red + 2 blue.
-        let c = out.pixels[0];
-        assert_eq!((c.r(), c.g(), c.b()), (133, 0, 33));
-    }
 
     #[test]
     fn rate_meter_counts_the_last_second() {

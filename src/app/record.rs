@@ -206,6 +206,46 @@ impl Drop for Recorder {
     }
 }
 
+/// The folder of a new recording under `parent`, named by its UTC start time
+/// (`20261122-094512`; `-2`, `-3`... appended when that name is taken).
+pub fn session_dir(parent: &Path, now: std::time::SystemTime) -> PathBuf {
+    const SECS_PER_DAY: u64 = 86_400;
+    let secs = now
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.as_secs())
+        .unwrap_or(0);
+    let (y, m, d) = civil_from_days((secs / SECS_PER_DAY) as i64);
+    let t = secs % SECS_PER_DAY;
+    let name = format!(
+        "{y:04}{m:02}{d:02}-{:02}{:02}{:02}",
+        t / 3600,
+        t / 60 % 60,
+        t % 60
+    );
+    let mut dir = parent.join(&name);
+    let mut k = 2;
+    while dir.exists() {
+        dir = parent.join(format!("{name}-{k}"));
+        k += 1;
+    }
+    dir
+}
+
+/// Proleptic Gregorian (year, month, day) of a day count since 1970-01-01 (the
+/// well-known era algorithm: 400-year eras of 146097 days, years starting in March).
+fn civil_from_days(days: i64) -> (i64, u32, u32) {
+    let z = days + 719_468;
+    let era = z.div_euclid(146_097);
+    let doe = z.rem_euclid(146_097);
+    let yoe = (doe - doe / 1460 + doe / 36_524 - doe / 146_096) / 365;
+    let doy = doe - (365 * yoe + yoe / 4 - yoe / 100);
+    let mp = (5 * doy + 2) / 153;
+    let d = (doy - (153 * mp + 2) / 5 + 1) as u32;
+    let m = if mp < 10 { mp + 3 } else { mp - 9 } as u32;
+    let y = yoe + era * 400 + i64::from(m <= 2);
+    (y, m, d)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -257,5 +297,22 @@ mod tests {
             Err(RecordError::NotEmpty(_))
         ));
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn session_folders_are_named_by_utc_time_and_never_reused() {
+        assert_eq!(civil_from_days(0), (1970, 1, 1));
+        assert_eq!(civil_from_days(59), (1970, 3, 1));
+        // 2000-02-29 (a leap day of a century year divisible by 400).
+        assert_eq!(civil_from_days(11_016), (2000, 2, 29));
+        let parent = std::env::temp_dir().join(format!("fs_session_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&parent);
+        // 2026-11-22 09:45:12 UTC.
+        let t = std::time::UNIX_EPOCH + std::time::Duration::from_secs(1_795_340_712);
+        let a = session_dir(&parent, t);
+        assert_eq!(a, parent.join("20261122-094512"));
+        std::fs::create_dir_all(&a).expect("mkdir");
+        assert_eq!(session_dir(&parent, t), parent.join("20261122-094512-2"));
+        let _ = std::fs::remove_dir_all(&parent);
     }
 }

@@ -3,12 +3,17 @@
 //! recorder), a newest-wins [`LatestSlot`] hands them to `process` (the
 //! [`FrameProcessor`]), whose [`FitSnapshot`]s go to another slot the screen reads.
 //!
+//! `process` also prepares the camera frames of each snapshot for display
+//! ([`super::display`]: box-filtered to the size of the view on screen, RGBA), so the
+//! screen's own thread only uploads them.
+//!
 //! The screen never waits for either thread; a slow processor drops frames (counted),
 //! a disconnected camera is shown and retried; a source that ends leaves the last
 //! snapshot on screen.
 
+use super::display::{display_factor, DisplayImage, Downscaler};
 use super::record::Recorder;
-use crate::pipeline::timing::TimingStats;
+use super::stats::RollingStats;
 use crate::pipeline::{
     FitSnapshot, FramePair, FrameProcessor, FrameSource, LatestSlot, SourceError,
 };
@@ -50,8 +55,12 @@ pub struct Controls {
     pub pause_polls: AtomicU64,
     pub recorder: Mutex<Option<Recorder>>,
     pub status: Mutex<SourceStatus>,
-    /// Durations of `source` (reading one pair) and `process` (one snapshot), ms.
-    pub stats: Mutex<TimingStats>,
+    /// Durations of `source` (reading one pair), `process` (one snapshot) and
+    /// `display` (preparing its frames for the screen), ms.
+    pub stats: Mutex<RollingStats>,
+    /// Size of a camera view on screen (pixels), set by the screen: the frames are
+    /// prepared for display at about that size.
+    pub view_px: Mutex<Option<[f32; 2]>>,
     /// When the most recent pairs left the source (index, time), for the screen's
     /// arrival-to-screen latency.
     arrivals: Mutex<std::collections::VecDeque<(u64, Instant)>>,
@@ -64,8 +73,8 @@ impl Controls {
     pub fn status(&self) -> SourceStatus {
         self.status.lock().map(|s| s.clone()).unwrap_or_default()
     }
-    /// Median/p95 of the pipeline threads' own work.
-    pub fn thread_stats(&self) -> TimingStats {
+    /// Rolling statistics of the pipeline threads' own work.
+    pub fn thread_stats(&self) -> RollingStats {
         self.stats.lock().map(|s| s.clone()).unwrap_or_default()
     }
     fn add_stat(&self, stage: &str, since: Instant) {
@@ -93,10 +102,18 @@ impl Controls {
     }
 }
 
+/// A snapshot with its camera frames prepared for display.
+#[derive(Debug, Clone)]
+pub struct ScreenSnapshot {
+    pub snap: FitSnapshot,
+    pub front_display: Option<Arc<DisplayImage>>,
+    pub side_display: Option<Arc<DisplayImage>>,
+}
+
 /// The running threads; dropping it stops them.
 pub struct Runner {
     pub controls: Arc<Controls>,
-    pub snapshots: Arc<LatestSlot<FitSnapshot>>,
+    pub snapshots: Arc<LatestSlot<ScreenSnapshot>>,
     pairs: Arc<LatestSlot<FramePair>>,
     process: Option<JoinHandle<()>>,
 }
@@ -110,7 +127,7 @@ impl Runner {
     ) -> std::io::Result<Self> {
         let controls = Arc::new(Controls::default());
         let pairs = Arc::new(LatestSlot::<FramePair>::new());
-        let snapshots = Arc::new(LatestSlot::<FitSnapshot>::new());
+        let snapshots = Arc::new(LatestSlot::<ScreenSnapshot>::new());
         let fps = source.fps().filter(|f| f.is_finite() && *f > 0.0);
         {
             let controls = controls.clone();
@@ -196,6 +213,7 @@ impl Runner {
             std::thread::Builder::new()
                 .name("process".into())
                 .spawn(move || {
+                    let mut downscaler = Downscaler::default();
                     while let Some(pair) = pairs.take() {
                         if controls.stop.load(Ordering::Relaxed) {
                             break;
@@ -214,7 +232,22 @@ impl Runner {
                         let t0 = Instant::now();
                         let snap = processor.process(&pair);
                         controls.add_stat("process", t0);
-                        snapshots.put(snap);
+                        let t1 = Instant::now();
+                        let target = controls.view_px.lock().ok().and_then(|v| *v);
+                        let mut prepare = |f: &Option<Arc<image::RgbImage>>| {
+                            f.as_ref().map(|f| {
+                                let factor = display_factor(f.width(), f.height(), target);
+                                downscaler.prepare(f, factor)
+                            })
+                        };
+                        let front_display = prepare(&snap.front_frame);
+                        let side_display = prepare(&snap.side_frame);
+                        controls.add_stat("display", t1);
+                        snapshots.put(ScreenSnapshot {
+                            snap,
+                            front_display,
+                            side_display,
+                        });
                         notify();
                     }
                     snapshots.close();
@@ -306,7 +339,7 @@ mod tests {
         .expect("threads");
         let mut last = None;
         while let Some(s) = r.snapshots.take() {
-            last = Some(s.frame_index);
+            last = Some(s.snap.frame_index);
         }
         assert_eq!(last, Some(19));
         let st = r.controls.status();
@@ -346,19 +379,77 @@ mod tests {
         )
         .expect("threads");
         let first = r.snapshots.take().expect("a snapshot");
-        assert_eq!(first.phase, Phase::WaitingForSubject);
+        assert_eq!(first.snap.phase, Phase::WaitingForSubject);
         if let Ok(mut slot) = r.controls.replace_processor.lock() {
             *slot = Some(Box::new(Tagged(Phase::LearningBackdrop)));
         }
         // Snapshots already under way may still come from the old processor.
         let mut swapped = false;
         for _ in 0..1000 {
-            if r.snapshots.take().expect("a snapshot").phase == Phase::LearningBackdrop {
+            if r.snapshots.take().expect("a snapshot").snap.phase == Phase::LearningBackdrop {
                 swapped = true;
                 break;
             }
         }
         assert!(swapped, "the replacement never ran");
+    }
+
+    /// Passes the pair's frames through, as the station does.
+    struct WithFrames;
+    impl FrameProcessor for WithFrames {
+        fn process(&mut self, pair: &FramePair) -> FitSnapshot {
+            let mut s = FitSnapshot::empty(pair.index, Phase::WaitingForSubject);
+            s.front_frame = Some(Arc::new(pair.front.clone()));
+            s.side_frame = Some(Arc::new(pair.side.clone()));
+            s
+        }
+    }
+
+    struct Sized(u64);
+    impl FrameSource for Sized {
+        fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
+            self.0 += 1;
+            Ok(Some(FramePair {
+                index: self.0,
+                timestamp_s: 0.0,
+                front: image::RgbImage::from_pixel(1280, 720, image::Rgb([10, 20, 30])),
+                side: image::RgbImage::from_pixel(720, 1280, image::Rgb([40, 50, 60])),
+            }))
+        }
+        fn calibration(&self) -> Option<&StationCalibration> {
+            None
+        }
+        fn describe(&self) -> String {
+            "sized".into()
+        }
+    }
+
+    #[test]
+    fn frames_come_prepared_for_the_view_size() {
+        let r = Runner::start(Box::new(Sized(0)), Box::new(WithFrames), Box::new(|| {}))
+            .expect("threads");
+        if let Ok(mut v) = r.controls.view_px.lock() {
+            *v = Some([420.0, 800.0]);
+        }
+        // Snapshots under way may still have the default size; a later one has the view's.
+        let mut seen = None;
+        for _ in 0..1000 {
+            let s = r.snapshots.take().expect("a snapshot");
+            let (Some(f), Some(sd)) = (s.front_display, s.side_display) else {
+                panic!("no display images");
+            };
+            assert_eq!(f.frame_size, [1280, 720]);
+            assert_eq!(sd.frame_size, [720, 1280]);
+            assert_eq!(f.rgba.get(..4), Some(&[10u8, 20, 30, 255][..]));
+            if f.size == [426, 240] {
+                seen = Some(sd.size);
+                break;
+            }
+        }
+        // The side view: 720 x 1280 into 420 x 800 -> factor 1.6 -> 1, capped at 2 by
+        // the display limit.
+        assert_eq!(seen, Some([360, 640]));
+        assert!(r.controls.thread_stats().get("display").is_some());
     }
 
     #[test]
