@@ -554,6 +554,16 @@ impl Fitter {
         let Some(seen) = shape::gap_top_on_axis(cam, front, axis.x, axis.z, y_from, y_to) else {
             return;
         };
+        // A gap top outside the range of human proportions is a mask that lost the legs'
+        // inner edges (trousers of the backdrop's colour), not a crotch: keep the
+        // candidate's own.
+        let ratio = seen / stature.max(1e-6);
+        if !(CROTCH_RATIO.0..=CROTCH_RATIO.1).contains(&ratio) {
+            if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                eprintln!("crotch: seen {seen:.4} ({ratio:.3} of stature) ignored");
+            }
+            return;
+        }
         for _ in 0..CROTCH_ROUNDS {
             shape::rasterize_band(
                 &body.positions,
@@ -602,6 +612,10 @@ const CROTCH_ROUNDS: usize = 2;
 const CROTCH_BAND_MARGIN_M: f64 = 0.05;
 /// Largest crotch correction believed, metres (more: the observation is wrong).
 const MAX_CROTCH_SHIFT_M: f64 = 0.08;
+/// Plausible crotch height as a fraction of stature: adults measure about 0.47 (ANSUR II
+/// crotch height over stature, both sexes), a few standard deviations of about 0.013
+/// either way.
+const CROTCH_RATIO: (f64, f64) = (0.42, 0.52);
 
 /// Gauss-Newton with a finite-difference Jacobian on the shape descriptor over the macro
 /// parameters (gender, muscle, weight, height, proportions, age); they stay in range.
