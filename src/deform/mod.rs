@@ -83,6 +83,7 @@
 //! slowly: per-sweep moves become tiny long before the surface has arrived.
 
 mod anderson;
+mod blocklu;
 mod encoding;
 mod laplacian;
 mod mvc;

@@ -7,14 +7,20 @@
 //! (vertex, free ring member) pair.
 //!
 //! `J` is built by forward differences of the decoding (each `v_mv` reads only its own
-//! one-ring, so a block costs three local decodes), the normal equations `J^T J` (plus a
-//! tiny ridge) are factored once with faer's sparse Cholesky (`Par::Seq`), and the
-//! factor is reused as long as it stays a good model: a chord (simplified Newton)
-//! iteration `x <- x - (J0^T J0)^-1 J0^T F(x)`. Its fixed point is `F = 0` whatever the
-//! linearisation point `J0` is; only the contraction rate depends on it, so the factor is
-//! refreshed (numerically; the analysis is kept) when a solve needs many steps.
+//! one-ring, so a block costs three local decodes). `J` is square (hard constraints: as
+//! many equations as free unknowns), so a Newton step is `J d = -F`: `J` is factored once
+//! with a block LU on its own one-ring pattern (`blocklu.rs`) and the factor is reused as
+//! long as it stays a good model: a chord (simplified Newton) iteration
+//! `x <- x - J0^-1 F(x)`. Its fixed point is `F = 0` whatever the linearisation point
+//! `J0` is; only the contraction rate depends on it, so the factor is refreshed when a
+//! solve needs many steps. Should a pivot block of the LU be singular, the engine falls
+//! back to the normal equations `J^T J d = -J^T F` (plus a tiny ridge), factored with
+//! faer's sparse Cholesky (`Par::Seq`): no pivots, but the two-ring pattern of `J^T J`
+//! gives a factor about eleven times larger on the body, and a solve about four times
+//! slower (measured with `fitstation bench deform`).
 //! Positions in metres; the finite-difference step is relative to the mean edge length.
 
+use super::blocklu::BlockLu;
 use super::encoding::MeanValueEncoding;
 use super::DeformError;
 use faer::dyn_stack::{MemBuffer, MemStack, StackReq};
@@ -33,6 +39,15 @@ const NEWTON_RIDGE: f64 = 1e-10;
 /// Marks a vertex that is not free.
 const NOT_FREE: u32 = u32::MAX;
 
+/// Which factorisation a [`CoupledSystem`] solves with.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum CoupledEngine {
+    /// Block LU of `J` itself (one-ring pattern). The default.
+    BlockLu,
+    /// Cholesky of the normal equations `J^T J` (two-ring pattern): the fallback.
+    NormalEquations,
+}
+
 /// The coupled system of one fixed set (controls + anchors).
 pub(crate) struct CoupledSystem {
     /// Reduced index -> vertex, and vertex -> reduced index (or [`NOT_FREE`]).
@@ -43,27 +58,26 @@ pub(crate) struct CoupledSystem {
     ent_col: Vec<u32>,
     /// `J` blocks, one per entry: `dF_v / dx_u`.
     jac: Vec<DMat3>,
+    /// `J` by block columns: rows and `jac` slots of each free column.
+    jcol_ptr: Vec<u32>,
+    jcol_row: Vec<u32>,
+    jcol_slot: Vec<u32>,
     /// Per free row: its fixed ring members and the blocks `dF_v / dx_u` for them (the
     /// predictor's linear response to moved targets).
     fix_ptr: Vec<u32>,
     fix_vtx: Vec<u32>,
     fix_jac: Vec<DMat3>,
-    /// Per row, per entry pair (p <= q): slots of the block's first row in the three
-    /// scalar columns of the block (upper CSC).
-    pair_ptr: Vec<u32>,
-    pair_base: Vec<[u32; 3]>,
-    /// Upper triangle of `H = J^T J` (3F x 3F, unknown `3r + k`).
-    col_ptr: Vec<usize>,
-    row_idx: Vec<usize>,
-    values: Vec<f64>,
-    symbolic: SymbolicCholesky<usize>,
-    factor: Vec<f64>,
-    scratch: MemBuffer,
-    scratch_bytes: usize,
+    /// The block LU of `J` (None if its analysis failed), the normal equations (built
+    /// only when the LU cannot be used), and which of them holds the current factor.
+    lu: Option<BlockLu>,
+    normal: Option<NormalEquations>,
+    engine: CoupledEngine,
+    /// Tests only: skip the LU.
+    force_normal: bool,
     factored: bool,
-    /// Right-hand side / solution (3F), residuals per row, and a position scratch.
-    rhs: Vec<f64>,
+    /// Residuals per row (then the right-hand side and step), and a position scratch.
     residual: Vec<DVec3>,
+    delta: Vec<DVec3>,
     work: Vec<DVec3>,
     /// `F` of the free rows at `cached_at` (the end of the last solve, or the last
     /// linearisation point): a solve that starts there skips one evaluation.
@@ -74,8 +88,8 @@ pub(crate) struct CoupledSystem {
 }
 
 impl CoupledSystem {
-    /// Analyses the pattern of `J^T J` for the free vertices (`!fixed`). No numbers yet:
-    /// call [`Self::linearise`].
+    /// Lays out `J` for the free vertices (`!fixed`) and analyses its block LU. No numbers
+    /// yet: call [`Self::linearise`].
     pub(crate) fn new(
         enc: &MeanValueEncoding,
         fixed: &[bool],
@@ -96,11 +110,11 @@ impl CoupledSystem {
         let mut ent_col = Vec::with_capacity(rings.entry_count() + nf);
         ent_ptr.push(0u32);
         for &v in &free {
+            let start = ent_col.len();
             ent_col.push(reduced_of[v as usize]);
             for &u in rings.neighbours(v as usize) {
                 let r = reduced_of[u as usize];
-                if r != NOT_FREE && !ent_col[*ent_ptr.last().unwrap_or(&0) as usize..].contains(&r)
-                {
+                if r != NOT_FREE && !ent_col[start..].contains(&r) {
                     ent_col.push(r);
                 }
             }
@@ -118,6 +132,294 @@ impl CoupledSystem {
             }
             fix_ptr.push(fix_vtx.len() as u32);
         }
+        // Columns of J (transpose of the entry lists).
+        let mut jcol_ptr = vec![0u32; nf + 1];
+        for &c in &ent_col {
+            jcol_ptr[c as usize + 1] += 1;
+        }
+        for c in 0..nf {
+            jcol_ptr[c + 1] += jcol_ptr[c];
+        }
+        let mut fill: Vec<u32> = jcol_ptr[..nf].to_vec();
+        let mut jcol_row = vec![0u32; ent_col.len()];
+        let mut jcol_slot = vec![0u32; ent_col.len()];
+        for r in 0..nf {
+            for j in ent_ptr[r] as usize..ent_ptr[r + 1] as usize {
+                let c = ent_col[j] as usize;
+                let at = fill[c] as usize;
+                jcol_row[at] = r as u32;
+                jcol_slot[at] = j as u32;
+                fill[c] += 1;
+            }
+        }
+        // The block graph of J made symmetric (rings are symmetric on a manifold mesh,
+        // not necessarily at a non-manifold spot), without the diagonal.
+        let mut adj_ptr = Vec::with_capacity(nf + 1);
+        let mut adj: Vec<u32> = Vec::with_capacity(2 * ent_col.len());
+        adj_ptr.push(0u32);
+        for c in 0..nf {
+            let start = adj.len();
+            let rows = jcol_row[jcol_ptr[c] as usize..jcol_ptr[c + 1] as usize].iter();
+            let cols = ent_col[ent_ptr[c] as usize..ent_ptr[c + 1] as usize].iter();
+            for &x in rows.chain(cols) {
+                if x as usize != c && !adj[start..].contains(&x) {
+                    adj.push(x);
+                }
+            }
+            adj_ptr.push(adj.len() as u32);
+        }
+        let lu = BlockLu::analyse(&adj_ptr, &adj).ok();
+        Ok(CoupledSystem {
+            free,
+            reduced_of,
+            jac: vec![DMat3::ZERO; ent_col.len()],
+            fix_jac: vec![DMat3::ZERO; fix_vtx.len()],
+            fix_ptr,
+            fix_vtx,
+            ent_ptr,
+            ent_col,
+            jcol_ptr,
+            jcol_row,
+            jcol_slot,
+            lu,
+            normal: None,
+            engine: CoupledEngine::BlockLu,
+            force_normal: false,
+            factored: false,
+            residual: vec![DVec3::ZERO; nf],
+            delta: vec![DVec3::ZERO; nf],
+            cached_f: vec![DVec3::ZERO; nf],
+            cached_at: Vec::new(),
+            cache_valid: false,
+            work: Vec::new(),
+            fd_step: FD_REL_STEP * mean_edge_m.max(f64::MIN_POSITIVE),
+        })
+    }
+
+    /// Tests: solve with the normal equations even where the LU works.
+    #[cfg(test)]
+    pub(crate) fn force_normal_equations(&mut self) {
+        self.force_normal = true;
+    }
+
+    /// The factorisation in use.
+    pub(crate) fn engine(&self) -> CoupledEngine {
+        self.engine
+    }
+
+    /// Whether a linearisation has been factored.
+    pub(crate) fn is_factored(&self) -> bool {
+        self.factored
+    }
+
+    /// Builds `J` at `positions` (fixed vertices at their current values) by forward
+    /// differences and factors it (block LU; the normal equations if that fails).
+    pub(crate) fn linearise(
+        &mut self,
+        enc: &MeanValueEncoding,
+        positions: &[DVec3],
+    ) -> Result<(), DeformError> {
+        self.factored = false;
+        self.cache_valid = false;
+        self.work.clear();
+        self.work.extend_from_slice(positions);
+        let h = self.fd_step;
+        let work = &mut self.work;
+        // dF_v/dx_u = [u == v] I - d v_mv / dx_u, by forward differences.
+        let mut block = |v: usize, u: usize, base: Option<DVec3>| -> (DMat3, DVec3) {
+            let base = base.unwrap_or_else(|| enc.decode_vertex(v, work));
+            let keep = work[u];
+            let mut cols = [DVec3::ZERO; 3];
+            for (k, col) in cols.iter_mut().enumerate() {
+                let mut p = keep;
+                p[k] += h;
+                work[u] = p;
+                *col = -(enc.decode_vertex(v, work) - base) / h;
+                if u == v {
+                    col[k] += 1.0;
+                }
+            }
+            work[u] = keep;
+            (DMat3::from_cols(cols[0], cols[1], cols[2]), base)
+        };
+        for r in 0..self.free.len() {
+            let v = self.free[r] as usize;
+            // The first entry is the vertex itself: its call evaluates the base decode.
+            let mut base = None;
+            for j in self.ent_ptr[r] as usize..self.ent_ptr[r + 1] as usize {
+                let u = self.free[self.ent_col[j] as usize] as usize;
+                let (m, b) = block(v, u, base);
+                self.jac[j] = m;
+                base = Some(b);
+            }
+            for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
+                let (m, b) = block(v, self.fix_vtx[j] as usize, base);
+                self.fix_jac[j] = m;
+                base = Some(b);
+            }
+            // The vertex's own entry always comes first, so its decode is known here.
+            if let Some(b) = base {
+                self.cached_f[r] = positions[v] - b;
+            }
+        }
+        let lu_ok = match (&mut self.lu, self.force_normal) {
+            (Some(lu), false) => lu
+                .factor(&self.jcol_ptr, &self.jcol_row, &self.jcol_slot, &self.jac)
+                .is_ok(),
+            _ => false,
+        };
+        if lu_ok {
+            self.engine = CoupledEngine::BlockLu;
+        } else {
+            if self.normal.is_none() {
+                self.normal = Some(NormalEquations::new(&self.ent_ptr, &self.ent_col)?);
+            }
+            if let Some(ne) = &mut self.normal {
+                ne.factor(&self.ent_ptr, &self.ent_col, &self.jac)?;
+            }
+            self.engine = CoupledEngine::NormalEquations;
+        }
+        self.factored = true;
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache_valid = true;
+        Ok(())
+    }
+
+    /// One chord step from `positions`: writes `x - J0^-1 F(x)` for the free vertices
+    /// into `out` (fixed ones copied). With `jump` (per vertex, zero except at fixed
+    /// vertices about to move), a predictor step instead: `F` is taken to first order at
+    /// the moved fixed vertices, `F(x) + J_fixed jump`, so the step is the linear
+    /// response of the current smooth surface rather than a step from a surface with its
+    /// controls torn away from their neighbours; fixed vertices are written moved.
+    /// Returns (step length over free vertices, largest residual `|F_v(x)|`), metres.
+    pub(crate) fn step(
+        &mut self,
+        enc: &MeanValueEncoding,
+        positions: &[DVec3],
+        jump: Option<&[DVec3]>,
+        out: &mut [DVec3],
+    ) -> (f64, f64) {
+        let mut fmax = 0.0f64;
+        let cached = self.cache_valid && self.cached_at.as_slice() == positions;
+        self.cache_valid = false;
+        for (r, &v) in self.free.iter().enumerate() {
+            let mut f = if cached {
+                self.cached_f[r]
+            } else {
+                positions[v as usize] - enc.decode_vertex(v as usize, positions)
+            };
+            fmax = fmax.max(f.length_squared());
+            if let Some(jump) = jump {
+                for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
+                    f += self.fix_jac[j] * jump[self.fix_vtx[j] as usize];
+                }
+            }
+            self.residual[r] = f;
+        }
+        out.copy_from_slice(positions);
+        if let Some(jump) = jump {
+            for (o, d) in out.iter_mut().zip(jump) {
+                *o += *d;
+            }
+        }
+        if self.free.is_empty() {
+            return (0.0, fmax.sqrt());
+        }
+        match (self.engine, &mut self.lu, &mut self.normal) {
+            (CoupledEngine::BlockLu, Some(lu), _) => {
+                for (d, f) in self.delta.iter_mut().zip(&self.residual) {
+                    *d = -*f;
+                }
+                lu.solve_in_place(&mut self.delta);
+            }
+            (CoupledEngine::NormalEquations, _, Some(ne)) => ne.solve(
+                &self.ent_ptr,
+                &self.ent_col,
+                &self.jac,
+                &self.residual,
+                &mut self.delta,
+            ),
+            _ => return (f64::NAN, fmax.sqrt()),
+        }
+        let mut max_move = 0.0f64;
+        for (&v, d) in self.free.iter().zip(&self.delta) {
+            let m = d.length_squared();
+            if !(m <= max_move) {
+                max_move = m; // also propagates NaN
+            }
+            out[v as usize] = positions[v as usize] + *d;
+        }
+        (max_move.sqrt(), fmax.sqrt())
+    }
+
+    /// Largest `|F_v|` over the free vertices at `positions`, metres; remembered for a
+    /// solve that starts from there (the next frame's warm start).
+    pub(crate) fn residual_at(&mut self, enc: &MeanValueEncoding, positions: &[DVec3]) -> f64 {
+        let mut fmax = 0.0f64;
+        for (r, &v) in self.free.iter().enumerate() {
+            let f = positions[v as usize] - enc.decode_vertex(v as usize, positions);
+            fmax = fmax.max(f.length_squared());
+            self.cached_f[r] = f;
+        }
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache_valid = true;
+        fmax.sqrt()
+    }
+
+    /// Whether `fixed` is the fixed set this system was built for.
+    pub(crate) fn matches(&self, fixed: &[bool]) -> bool {
+        fixed.len() == self.reduced_of.len()
+            && fixed
+                .iter()
+                .zip(&self.reduced_of)
+                .all(|(&f, &r)| f == (r == NOT_FREE))
+    }
+
+    pub(crate) fn heap_bytes(&self) -> usize {
+        self.free.len() * 4
+            + self.reduced_of.len() * 4
+            + self.ent_col.len() * (4 + 72 + 8)
+            + self.fix_vtx.len() * (4 + 72)
+            + self.residual.len() * 24 * 3
+            + self.cached_at.len() * 24
+            + self.work.len() * 24
+            + self.lu.as_ref().map_or(0, |l| l.heap_bytes())
+            + self.normal.as_ref().map_or(0, |n| n.heap_bytes())
+    }
+
+    /// Stored scalar values of the factor in use.
+    pub(crate) fn factor_len(&self) -> usize {
+        match (self.engine, &self.lu, &self.normal) {
+            (CoupledEngine::BlockLu, Some(lu), _) => 9 * lu.block_count(),
+            (CoupledEngine::NormalEquations, _, Some(ne)) => ne.factor.len(),
+            _ => 0,
+        }
+    }
+}
+
+/// The fallback: `H = J^T J` (upper triangle, `3F x 3F`, unknown `3r + k`) and its
+/// sparse Cholesky factor.
+struct NormalEquations {
+    /// Per row, per entry pair (p <= q): slots of the block's first row in the three
+    /// scalar columns of the block (upper CSC).
+    pair_ptr: Vec<u32>,
+    pair_base: Vec<[u32; 3]>,
+    col_ptr: Vec<usize>,
+    row_idx: Vec<usize>,
+    values: Vec<f64>,
+    symbolic: SymbolicCholesky<usize>,
+    factor: Vec<f64>,
+    scratch: MemBuffer,
+    scratch_bytes: usize,
+    rhs: Vec<f64>,
+}
+
+impl NormalEquations {
+    /// Analyses the pattern of `J^T J` for rows with entries `ent_col[ent_ptr[r]..]`.
+    fn new(ent_ptr: &[u32], ent_col: &[u32]) -> Result<Self, DeformError> {
+        let nf = ent_ptr.len().saturating_sub(1);
         // Block pattern: every pair (min, max) of entries met in one row.
         let mut pairs: Vec<(u32, u32)> = Vec::with_capacity(ent_col.len() * 8);
         for r in 0..nf {
@@ -188,15 +490,7 @@ impl CoupledSystem {
         let scratch_bytes = req.unaligned_bytes_required();
         let scratch = MemBuffer::try_new(req)
             .map_err(|_| DeformError::Factorisation("out of memory for scratch".into()))?;
-        Ok(CoupledSystem {
-            free,
-            reduced_of,
-            jac: vec![DMat3::ZERO; ent_col.len()],
-            fix_jac: vec![DMat3::ZERO; fix_vtx.len()],
-            fix_ptr,
-            fix_vtx,
-            ent_ptr,
-            ent_col,
+        Ok(NormalEquations {
             pair_ptr,
             pair_base,
             values: vec![0.0; row_idx.len()],
@@ -206,83 +500,29 @@ impl CoupledSystem {
             symbolic,
             scratch,
             scratch_bytes,
-            factored: false,
             rhs: vec![0.0; dim],
-            residual: vec![DVec3::ZERO; nf],
-            cached_f: vec![DVec3::ZERO; nf],
-            cached_at: Vec::new(),
-            cache_valid: false,
-            work: Vec::new(),
-            fd_step: FD_REL_STEP * mean_edge_m.max(f64::MIN_POSITIVE),
         })
     }
 
-    /// Whether a linearisation has been factored.
-    pub(crate) fn is_factored(&self) -> bool {
-        self.factored
-    }
-
-    /// Builds `J` at `positions` (fixed vertices at their current values) by forward
-    /// differences, assembles `J^T J` and factors it.
-    pub(crate) fn linearise(
+    /// Assembles `J^T J` (plus the ridge) from the blocks and factors it.
+    fn factor(
         &mut self,
-        enc: &MeanValueEncoding,
-        positions: &[DVec3],
+        ent_ptr: &[u32],
+        ent_col: &[u32],
+        jac: &[DMat3],
     ) -> Result<(), DeformError> {
-        self.factored = false;
-        self.cache_valid = false;
-        self.work.clear();
-        self.work.extend_from_slice(positions);
-        let h = self.fd_step;
-        let work = &mut self.work;
-        // dF_v/dx_u = [u == v] I - d v_mv / dx_u, by forward differences.
-        let mut block = |v: usize, u: usize, base: Option<DVec3>| -> (DMat3, DVec3) {
-            let base = base.unwrap_or_else(|| enc.decode_vertex(v, work));
-            let keep = work[u];
-            let mut cols = [DVec3::ZERO; 3];
-            for (k, col) in cols.iter_mut().enumerate() {
-                let mut p = keep;
-                p[k] += h;
-                work[u] = p;
-                *col = -(enc.decode_vertex(v, work) - base) / h;
-                if u == v {
-                    col[k] += 1.0;
-                }
-            }
-            work[u] = keep;
-            (DMat3::from_cols(cols[0], cols[1], cols[2]), base)
-        };
-        for r in 0..self.free.len() {
-            let v = self.free[r] as usize;
-            // The first entry is the vertex itself: its call evaluates the base decode.
-            let mut base = None;
-            for j in self.ent_ptr[r] as usize..self.ent_ptr[r + 1] as usize {
-                let u = self.free[self.ent_col[j] as usize] as usize;
-                let (m, b) = block(v, u, base);
-                self.jac[j] = m;
-                base = Some(b);
-            }
-            for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
-                let (m, b) = block(v, self.fix_vtx[j] as usize, base);
-                self.fix_jac[j] = m;
-                base = Some(b);
-            }
-            // The vertex's own entry always comes first, so its decode is known here.
-            if let Some(b) = base {
-                self.cached_f[r] = positions[v] - b;
-            }
-        }
+        let nf = ent_ptr.len().saturating_sub(1);
         self.values.iter_mut().for_each(|x| *x = 0.0);
-        for r in 0..self.free.len() {
-            let (e0, e1) = (self.ent_ptr[r] as usize, self.ent_ptr[r + 1] as usize);
+        for r in 0..nf {
+            let (e0, e1) = (ent_ptr[r] as usize, ent_ptr[r + 1] as usize);
             let mut slot = self.pair_ptr[r] as usize;
             for p in e0..e1 {
                 for q in p..e1 {
                     let base = self.pair_base[slot];
                     slot += 1;
-                    let (cp, cq) = (self.ent_col[p], self.ent_col[q]);
+                    let (cp, cq) = (ent_col[p], ent_col[q]);
                     if cp == cq {
-                        let m = self.jac[p].transpose() * self.jac[p];
+                        let m = jac[p].transpose() * jac[p];
                         for (l, &b) in base.iter().enumerate() {
                             let col = m.col(l);
                             for k in 0..=l {
@@ -292,7 +532,7 @@ impl CoupledSystem {
                     } else {
                         // Block (row min, column max) = J_min^T J_max.
                         let (a, b) = if cp < cq { (p, q) } else { (q, p) };
-                        let m = self.jac[a].transpose() * self.jac[b];
+                        let m = jac[a].transpose() * jac[b];
                         for (l, &s) in base.iter().enumerate() {
                             let col = m.col(l);
                             for k in 0..3 {
@@ -308,7 +548,6 @@ impl CoupledSystem {
         let trace: f64 = (0..dim).map(|c| self.values[self.col_ptr[c + 1] - 1]).sum();
         let mean_diag = trace / dim.max(1) as f64;
         if dim == 0 {
-            self.factored = true;
             return Ok(());
         }
         for c in 0..dim {
@@ -330,66 +569,29 @@ impl CoupledSystem {
                 Default::default(),
             )
             .map_err(|e| DeformError::Factorisation(format!("coupled numeric: {e:?}")))?;
-        self.factored = true;
-        self.cached_at.clear();
-        self.cached_at.extend_from_slice(positions);
-        self.cache_valid = true;
         Ok(())
     }
 
-    /// One chord step from `positions`: writes `x - (J^T J)^-1 J^T F(x)` for the free
-    /// vertices into `out` (fixed ones copied). With `jump` (per vertex, zero except at
-    /// fixed vertices about to move), a predictor step instead: `F` is taken to first
-    /// order at the moved fixed vertices, `F(x) + J_fixed jump`, so the step is the
-    /// linear response of the current smooth surface rather than a step from a surface
-    /// with its controls torn away from their neighbours; fixed vertices are written
-    /// moved. Returns (step length over free vertices, largest residual `|F_v(x)|`),
-    /// metres.
-    pub(crate) fn step(
+    /// Writes `-(J^T J)^-1 J^T f` into `out` (per free row).
+    fn solve(
         &mut self,
-        enc: &MeanValueEncoding,
-        positions: &[DVec3],
-        jump: Option<&[DVec3]>,
+        ent_ptr: &[u32],
+        ent_col: &[u32],
+        jac: &[DMat3],
+        f: &[DVec3],
         out: &mut [DVec3],
-    ) -> (f64, f64) {
-        let mut fmax = 0.0f64;
-        let cached = self.cache_valid && self.cached_at.as_slice() == positions;
-        self.cache_valid = false;
-        for (r, &v) in self.free.iter().enumerate() {
-            let mut f = if cached {
-                self.cached_f[r]
-            } else {
-                positions[v as usize] - enc.decode_vertex(v as usize, positions)
-            };
-            fmax = fmax.max(f.length_squared());
-            if let Some(jump) = jump {
-                for j in self.fix_ptr[r] as usize..self.fix_ptr[r + 1] as usize {
-                    f += self.fix_jac[j] * jump[self.fix_vtx[j] as usize];
-                }
-            }
-            self.residual[r] = f;
-        }
+    ) {
         self.rhs.iter_mut().for_each(|x| *x = 0.0);
-        for r in 0..self.free.len() {
-            let f = self.residual[r];
-            for j in self.ent_ptr[r] as usize..self.ent_ptr[r + 1] as usize {
-                let g = self.jac[j].transpose() * f;
-                let c = 3 * self.ent_col[j] as usize;
+        for (r, f) in f.iter().enumerate() {
+            for j in ent_ptr[r] as usize..ent_ptr[r + 1] as usize {
+                let g = jac[j].transpose() * *f;
+                let c = 3 * ent_col[j] as usize;
                 self.rhs[c] -= g.x;
                 self.rhs[c + 1] -= g.y;
                 self.rhs[c + 2] -= g.z;
             }
         }
-        out.copy_from_slice(positions);
-        if let Some(jump) = jump {
-            for (o, d) in out.iter_mut().zip(jump) {
-                *o += *d;
-            }
-        }
         let dim = self.rhs.len();
-        if dim == 0 {
-            return (0.0, fmax.sqrt());
-        }
         let stack = MemStack::new(&mut self.scratch);
         let rhs = MatMut::from_column_major_slice_mut(&mut self.rhs, dim, 1);
         LltRef::<usize, f64>::new(&self.symbolic, &self.factor).solve_in_place_with_conj(
@@ -398,61 +600,18 @@ impl CoupledSystem {
             Par::Seq,
             stack,
         );
-        let mut max_move = 0.0f64;
-        for (r, &v) in self.free.iter().enumerate() {
-            let d = DVec3::new(self.rhs[3 * r], self.rhs[3 * r + 1], self.rhs[3 * r + 2]);
-            let m = d.length_squared();
-            if !(m <= max_move) {
-                max_move = m; // also propagates NaN
-            }
-            out[v as usize] = positions[v as usize] + d;
+        for (r, o) in out.iter_mut().enumerate() {
+            *o = DVec3::new(self.rhs[3 * r], self.rhs[3 * r + 1], self.rhs[3 * r + 2]);
         }
-        (max_move.sqrt(), fmax.sqrt())
     }
 
-    /// Largest `|F_v|` over the free vertices at `positions`, metres; remembered for a
-    /// solve that starts from there (the next frame's warm start).
-    pub(crate) fn residual_at(&mut self, enc: &MeanValueEncoding, positions: &[DVec3]) -> f64 {
-        let mut fmax = 0.0f64;
-        for (r, &v) in self.free.iter().enumerate() {
-            let f = positions[v as usize] - enc.decode_vertex(v as usize, positions);
-            fmax = fmax.max(f.length_squared());
-            self.cached_f[r] = f;
-        }
-        self.cached_at.clear();
-        self.cached_at.extend_from_slice(positions);
-        self.cache_valid = true;
-        fmax.sqrt()
-    }
-
-    /// Whether `fixed` is the fixed set this system was built for.
-    pub(crate) fn matches(&self, fixed: &[bool]) -> bool {
-        fixed.len() == self.reduced_of.len()
-            && fixed
-                .iter()
-                .zip(&self.reduced_of)
-                .all(|(&f, &r)| f == (r == NOT_FREE))
-    }
-
-    pub(crate) fn heap_bytes(&self) -> usize {
-        self.free.len() * 4
-            + self.reduced_of.len() * 4
-            + self.ent_col.len() * (4 + 72)
-            + self.fix_vtx.len() * (4 + 72)
-            + self.pair_base.len() * 12
+    fn heap_bytes(&self) -> usize {
+        self.pair_base.len() * 12
+            + self.pair_ptr.len() * 4
             + self.col_ptr.len() * 8
             + self.row_idx.len() * 16
             + self.factor.len() * 8
-            + self.values.len() * 8
             + self.rhs.len() * 8
-            + self.residual.len() * 24
-            + self.cached_f.len() * 24
-            + self.cached_at.len() * 24
             + self.scratch_bytes
-            + self.work.len() * 24
-    }
-
-    pub(crate) fn factor_len(&self) -> usize {
-        self.factor.len()
     }
 }
