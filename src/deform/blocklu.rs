@@ -250,11 +250,6 @@ impl BlockLu {
         self.touched.iter_mut().for_each(|t| *t = false);
     }
 
-    /// Whether a factorisation is held.
-    pub(crate) fn is_factored(&self) -> bool {
-        self.factored
-    }
-
     /// Step 4: overwrites `rhs` (reduced indices) with the solution of `J x = rhs`.
     pub(crate) fn solve_in_place(&mut self, rhs: &mut [DVec3]) {
         let n = self.dim();
@@ -280,33 +275,6 @@ impl BlockLu {
         }
         for (r, b) in rhs.iter_mut().enumerate().take(n) {
             *b = self.sol[self.pos_of[r] as usize].as_dvec3();
-        }
-    }
-
-    /// f64 variant of the solve (probe).
-    pub(crate) fn solve_in_place64(&mut self, rhs: &mut [DVec3]) {
-        let n = self.dim();
-        let mut sol: Vec<DVec3> = vec![DVec3::ZERO; n];
-        for (r, b) in rhs.iter().enumerate().take(n) {
-            sol[self.pos_of[r] as usize] = *b;
-        }
-        for j in 0..n {
-            let yj = sol[j];
-            let (a, b) = (self.l_ptr[j] as usize, self.l_ptr[j + 1] as usize);
-            for (&i, l) in self.l_row[a..b].iter().zip(&self.l_val[a..b]) {
-                sol[i as usize] -= *l * yj;
-            }
-        }
-        for k in (0..n).rev() {
-            let xk = self.diag_inv32[k].as_dmat3() * sol[k];
-            sol[k] = xk;
-            let (a, b) = (self.u_ptr[k] as usize, self.u_ptr[k + 1] as usize);
-            for (&j, u) in self.u_row[a..b].iter().zip(&self.u_val[a..b]) {
-                sol[j as usize] -= *u * xk;
-            }
-        }
-        for (r, b) in rhs.iter_mut().enumerate().take(n) {
-            *b = sol[self.pos_of[r] as usize];
         }
     }
 

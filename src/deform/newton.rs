@@ -203,6 +203,7 @@ impl CoupledSystem {
     }
 
     /// The factorisation in use.
+    #[cfg(test)]
     pub(crate) fn engine(&self) -> CoupledEngine {
         self.engine
     }
@@ -613,5 +614,49 @@ impl NormalEquations {
             + self.factor.len() * 8
             + self.rhs.len() * 8
             + self.scratch_bytes
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::mesh::shapes::uv_sphere;
+
+    /// The block LU and the normal equations take the same chord step.
+    #[test]
+    fn lu_and_normal_equations_agree() {
+        let mesh = uv_sphere(1.0, 12, 16);
+        let enc = MeanValueEncoding::encode(&mesh, &mesh.one_rings());
+        let n = mesh.vertex_count();
+        let fixed: Vec<bool> = (0..n).map(|v| v % 5 == 0).collect();
+        let mut jump = vec![DVec3::ZERO; n];
+        for v in (0..n).filter(|&v| fixed[v]) {
+            let p = mesh.positions[v];
+            jump[v] = DVec3::new(0.05 * p.y, 0.02 * p.x, 0.0);
+        }
+        let mut outs = Vec::new();
+        for force in [false, true] {
+            let mut sys = CoupledSystem::new(&enc, &fixed, mesh.mean_edge_length()).unwrap();
+            if force {
+                sys.force_normal_equations();
+            }
+            sys.linearise(&enc, &mesh.positions).unwrap();
+            let want = if force {
+                CoupledEngine::NormalEquations
+            } else {
+                CoupledEngine::BlockLu
+            };
+            assert_eq!(sys.engine(), want);
+            let mut out = mesh.positions.clone();
+            let (moved, _) = sys.step(&enc, &mesh.positions, Some(&jump), &mut out);
+            assert!(moved > 1e-3 && moved.is_finite());
+            outs.push(out);
+        }
+        let diff = outs[0]
+            .iter()
+            .zip(&outs[1])
+            .map(|(a, b)| (*a - *b).length())
+            .fold(0.0, f64::max);
+        assert!(diff < 1e-5, "engines differ by {diff} m");
     }
 }
