@@ -130,15 +130,8 @@ impl BlockLu {
             u_ptr.push(u_row.len() as u32);
         }
         // Columns of L: k is in column j for every j in the U pattern of column k.
-        let mut l_count = vec![0u32; n + 1];
-        for &j in &u_row {
-            l_count[j as usize + 1] += 1;
-        }
-        for j in 0..n {
-            l_count[j + 1] += l_count[j];
-        }
-        let l_ptr = l_count.clone();
-        let mut fill = l_count;
+        let l_ptr = column_offsets(&u_row, n);
+        let mut fill = l_ptr.clone();
         let mut l_row = vec![0u32; u_row.len()];
         for k in 0..n {
             for &j in &u_row[u_ptr[k] as usize..u_ptr[k + 1] as usize] {
@@ -286,6 +279,19 @@ impl BlockLu {
             + 2 * nnz * (4 + 72 + 36)
             + n * (36 + 72 + 1 + 12)
     }
+}
+
+/// Start offsets (length `n + 1`) of the columns of a pattern given the column of each
+/// entry (`keys`, each below `n`): a counting sort's prefix sums.
+pub(super) fn column_offsets(keys: &[u32], n: usize) -> Vec<u32> {
+    let mut ptr = vec![0u32; n + 1];
+    for &k in keys {
+        ptr[k as usize + 1] += 1;
+    }
+    for j in 0..n {
+        ptr[j + 1] += ptr[j];
+    }
+    ptr
 }
 
 #[cfg(test)]

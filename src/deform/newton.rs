@@ -133,13 +133,7 @@ impl CoupledSystem {
             fix_ptr.push(fix_vtx.len() as u32);
         }
         // Columns of J (transpose of the entry lists).
-        let mut jcol_ptr = vec![0u32; nf + 1];
-        for &c in &ent_col {
-            jcol_ptr[c as usize + 1] += 1;
-        }
-        for c in 0..nf {
-            jcol_ptr[c + 1] += jcol_ptr[c];
-        }
+        let jcol_ptr = super::blocklu::column_offsets(&ent_col, nf);
         let mut fill: Vec<u32> = jcol_ptr[..nf].to_vec();
         let mut jcol_row = vec![0u32; ent_col.len()];
         let mut jcol_slot = vec![0u32; ent_col.len()];

@@ -397,7 +397,7 @@ pub fn find_targets(
     targets.clear();
     let mut stats = TargetStats::default();
     let variant = set.variant.unwrap_or(Variant::SliceExtremes);
-    let debug = std::env::var_os("FITSTATION_DEBUG").is_some();
+    let debug = super::debug_enabled();
     let mut occ_per: std::collections::BTreeMap<String, usize> = Default::default();
     for c in &set.controls {
         let (cam, mask) = match c.status.view() {
@@ -454,7 +454,7 @@ pub fn find_targets(
     }
     stats.rejected = reject_outliers(positions, set, targets, opts);
     stats.found -= stats.rejected.min(stats.found);
-    if std::env::var_os("FITSTATION_DEBUG").is_some() {
+    if super::debug_enabled() {
         let mut per: std::collections::BTreeMap<String, [usize; 2]> = Default::default();
         for (c, t) in set.controls.iter().zip(targets.iter()) {
             let e = per

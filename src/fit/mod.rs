@@ -33,6 +33,13 @@ use std::sync::Arc;
 /// Gauss-Newton steps of one decode (a warm refit is one decode; convergence continues
 /// over the following frames).
 const DECODE_ITERATIONS_PER_SOLVE: usize = 8;
+/// Whether the environment asks for the fit's diagnostic prints (`FITSTATION_DEBUG`), read
+/// once per process: the per-frame paths must not look up the environment.
+pub(crate) fn debug_enabled() -> bool {
+    static DEBUG: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *DEBUG.get_or_init(|| std::env::var_os("FITSTATION_DEBUG").is_some())
+}
+
 /// Correspondence rounds of an intermediate pass of the first fit.
 const INTERMEDIATE_ROUNDS: usize = 2;
 /// Decodes per correspondence round of a first fit.
@@ -243,21 +250,22 @@ impl Fitter {
                     self.opts.first_fit_rounds.min(INTERMEDIATE_ROUNDS)
                 };
                 let t0 = std::time::Instant::now();
-                if pass > 0 {
+                let fitted = if pass > 0 {
                     let Some(d) = self.avatar_descriptor() else {
                         break;
                     };
-                    self.first_fit(calib, front, side, obs, Some(&d))?;
                     stats = FitStats {
                         warm,
                         ..Default::default()
                     };
+                    Some(d)
                 } else {
-                    self.first_fit(calib, front, side, obs, None)?;
-                }
+                    None
+                };
+                self.first_fit(calib, front, side, obs, fitted.as_ref())?;
                 let t1 = std::time::Instant::now();
                 self.rounds(views, false, rounds, &mut stats)?;
-                if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                if debug_enabled() {
                     eprintln!(
                         "pass {pass}: setup {:.1} ms, rounds {:.1} ms",
                         (t1 - t0).as_secs_f64() * 1e3,
@@ -351,7 +359,7 @@ impl Fitter {
                     .solve(&self.target_buf, &mut s.positions)
                     .map_err(|e| FitError::Deform(e.to_string()))?;
                 stats.decode_iterations += rep.iterations;
-                if std::env::var_os("FITSTATION_DEBUG").is_some() {
+                if debug_enabled() {
                     eprintln!("decode: {rep:?}");
                 }
                 if rep.converged {
@@ -448,7 +456,7 @@ impl Fitter {
             PLACEMENT_LEVEL * stature,
         )
         .unwrap_or(DVec3::ZERO);
-        if std::env::var_os("FITSTATION_DEBUG").is_some() {
+        if debug_enabled() {
             eprintln!(
                 "placement: seen {seen:?} own {own:?} k {k:.4} torso_point {:?}",
                 obs.torso_point
@@ -559,7 +567,7 @@ impl Fitter {
         // candidate's own.
         let ratio = seen / stature.max(1e-6);
         if !(CROTCH_RATIO.0..=CROTCH_RATIO.1).contains(&ratio) {
-            if std::env::var_os("FITSTATION_DEBUG").is_some() {
+            if debug_enabled() {
                 eprintln!("crotch: seen {seen:.4} ({ratio:.3} of stature) ignored");
             }
             return;
@@ -587,7 +595,7 @@ impl Fitter {
             if d.abs() > MAX_CROTCH_SHIFT_M || d.abs() < 1e-4 {
                 return;
             }
-            if std::env::var_os("FITSTATION_DEBUG").is_some() {
+            if debug_enabled() {
                 eprintln!("crotch: seen {seen:.4} own {own:.4}");
             }
             let low = (own + d) / own;
@@ -630,7 +638,7 @@ fn shape_refine(
     const STEP: f64 = 0.02;
     const DAMPING: f64 = 1e-4;
     const LM_TRIES: usize = 4;
-    let debug = std::env::var_os("FITSTATION_DEBUG").is_some();
+    let debug = debug_enabled();
     let obs = observed.as_vec();
     let mut buf = Vec::new();
     let residual = |p: &ShapeParams, buf: &mut Vec<DVec3>| -> Vec<f64> {
