@@ -226,3 +226,56 @@ fn off_the_mark_is_measured_and_near_the_mark_is_fine() {
         r.landmarks.verdicts
     );
 }
+
+#[test]
+fn a_trunk_side_of_the_backdrop_colour_is_reported_and_a_whole_trunk_is_not() {
+    use fitstation::landmarks::LandmarkName;
+    let mut ex = learned_executor(2);
+    let p = render(&[subject()], scene(17));
+    let good = ex.process(&p.front, &p.side).expect("process");
+    assert!(
+        good.landmarks.trunk_asymmetry.is_some_and(|a| a < 0.05),
+        "{:?}",
+        good.landmarks.trunk_asymmetry
+    );
+    assert!(!has(&good, |v| matches!(
+        v,
+        Verdict::BlendsIntoBackdrop { .. }
+    )));
+    // Paint the outer 40 % of one half of the trunk, between the crotch and the armpits,
+    // with the empty backdrop: clothing that matches it exactly there.
+    let (crotch, armpit) = (
+        good.front.landmark(LandmarkName::Crotch).expect("crotch"),
+        good.front
+            .landmark(LandmarkName::ArmpitLeft)
+            .expect("armpit"),
+    );
+    let empty = &empty_cached(0).front;
+    let mask = &good.masks.front;
+    let mut front = p.front.clone();
+    let axis = crotch.x.round() as i64;
+    for y in armpit.y.round() as u32..crotch.y.round() as u32 {
+        // The trunk run around the axis in this row.
+        let (mut x0, mut x1) = (axis, axis);
+        while mask.get(x0 - 1, y as i64) {
+            x0 -= 1;
+        }
+        while mask.get(x1 + 1, y as i64) {
+            x1 += 1;
+        }
+        let cut = axis + (x1 - axis) * 6 / 10;
+        for x in cut..=x1 + 2 {
+            front.put_pixel(x as u32, y, *empty.get_pixel(x as u32, y));
+        }
+    }
+    let r = ex.process(&front, &p.side).expect("process");
+    assert!(
+        has(&r, |v| matches!(
+            v,
+            Verdict::BlendsIntoBackdrop { view: View::Front }
+        )),
+        "asymmetry {:?}, verdicts {:?}",
+        r.landmarks.trunk_asymmetry,
+        r.landmarks.verdicts
+    );
+}

@@ -195,6 +195,60 @@ impl RunComponents {
     }
 }
 
+/// Writes component `comp` of `runs` into `out` (0/255), holes left open.
+pub fn write_component(runs: &RunComponents, comp: usize, out: &mut Vec<u8>) {
+    let (w, h) = (runs.width as usize, runs.height as usize);
+    out.clear();
+    out.resize(w * h, 0);
+    for (r, run) in runs.runs.iter().enumerate() {
+        if runs.label[r] as usize == comp {
+            let y = run.y as usize;
+            out[y * w + run.x0 as usize..y * w + run.x1 as usize].fill(super::MASK_ON);
+        }
+    }
+}
+
+/// Fills the holes of a binary mask in place, except the holes that look like the
+/// background seen through a gap: `background_evidence(y, x0, x1)` counts the pixels of
+/// the hole run `[x0, x1)` of row `y` that are explained as background, and a hole stays
+/// open when it holds at least `min_open_area` pixels of which at least `open_fraction`
+/// are such evidence. `evidence` is scratch (one counter per component).
+pub fn fill_holes_selective(
+    mask: &mut [u8],
+    width: u32,
+    height: u32,
+    scratch: &mut RunComponents,
+    evidence: &mut Vec<u64>,
+    mut background_evidence: impl FnMut(usize, usize, usize) -> u64,
+    min_open_area: u64,
+    open_fraction: f64,
+) {
+    let w = width as usize;
+    scratch.compute(mask, width, height, false, false);
+    evidence.clear();
+    evidence.resize(scratch.components.len(), 0);
+    for (r, run) in scratch.runs.iter().enumerate() {
+        let c = scratch.label[r] as usize;
+        let comp = &scratch.components[c];
+        if !comp.touches_border(width, height) && comp.area >= min_open_area {
+            evidence[c] += background_evidence(run.y as usize, run.x0 as usize, run.x1 as usize);
+        }
+    }
+    for (r, run) in scratch.runs.iter().enumerate() {
+        let c = scratch.label[r] as usize;
+        let comp = &scratch.components[c];
+        if comp.touches_border(width, height) {
+            continue;
+        }
+        let open =
+            comp.area >= min_open_area && evidence[c] as f64 >= open_fraction * comp.area as f64;
+        if !open {
+            let y = run.y as usize;
+            mask[y * w + run.x0 as usize..y * w + run.x1 as usize].fill(super::MASK_ON);
+        }
+    }
+}
+
 /// Fills the holes of a binary mask in place (background components, 4-connected, that
 /// do not touch the image border).
 pub fn fill_holes(mask: &mut [u8], width: u32, height: u32, scratch: &mut RunComponents) {
@@ -235,6 +289,34 @@ mod tests {
         let big = rc.largest().unwrap();
         assert_eq!(rc.components[big].area, 4);
         assert_eq!((rc.components[big].min_x, rc.components[big].max_y), (3, 4));
+    }
+
+    #[test]
+    fn holes_of_background_evidence_stay_open_and_others_are_filled() {
+        let (m, w, h) = mask_from(&[
+            "..........", //
+            ".########.", //
+            ".#..##.#..", //
+            ".#..##.#..", //
+            ".########.", //
+            "..........", //
+        ]);
+        // The 2x2 hole (columns 2-3) is background evidence; the 1x2 hole (column 6) not.
+        let evidence = |y: usize, x0: usize, x1: usize| {
+            (x0..x1)
+                .filter(|&x| (2..4).contains(&x) && (2..4).contains(&y))
+                .count() as u64
+        };
+        let mut out = m.clone();
+        let (mut s, mut ev) = (RunComponents::default(), Vec::new());
+        fill_holes_selective(&mut out, w, h, &mut s, &mut ev, evidence, 2, 0.5);
+        assert_eq!(out[2 * 10 + 2], 0);
+        assert_eq!(out[3 * 10 + 3], 0);
+        assert_eq!(out[2 * 10 + 6], MASK_ON);
+        // A hole below the minimum area is filled whatever its evidence.
+        let mut out = m.clone();
+        fill_holes_selective(&mut out, w, h, &mut s, &mut ev, evidence, 5, 0.5);
+        assert_eq!(out[2 * 10 + 2], MASK_ON);
     }
 
     #[test]

@@ -497,3 +497,55 @@ impl ContourRange {
         }
     }
 }
+
+/// Levels sampled by [`trunk_asymmetry`] between the crotch and the armpits.
+const TRUNK_LEVELS: usize = 16;
+/// Fractions of the crotch-to-armpit height left out at each end (the crotch's own
+/// curve below, the armpit's fold above).
+const TRUNK_SKIP_LOW: f64 = 0.15;
+const TRUNK_SKIP_HIGH: f64 = 0.1;
+
+/// Left-right asymmetry of the trunk in the front view: at [`TRUNK_LEVELS`] heights
+/// between the crotch and the lower armpit, the trunk's half widths `l` and `r` either
+/// side of the body axis (the line from the crotch to the head top), and `|r - l| /
+/// (r + l)` (1 where the axis lies outside the silhouette); returned as the median over
+/// the levels (None without head top, crotch and armpits).
+///
+/// A trunk seen from the front is nearly symmetric about that axis; a side of it that
+/// blends into the backdrop (clothing of the backdrop's colour and brightness) leaves a
+/// bay in the silhouette on that side only, which a fit would take for a thinner body.
+pub fn trunk_asymmetry(
+    plane: &[DVec2],
+    f: &FrontFeatures,
+    scratch: &mut Vec<Crossing>,
+) -> Option<f64> {
+    let (top, crotch) = (plane[f.head_top?], plane[f.crotch?]);
+    let armpit_y = plane[f.armpit_left?].y.min(plane[f.armpit_right?].y);
+    let span = armpit_y - crotch.y;
+    if span <= 0.0 || top.y <= crotch.y {
+        return None;
+    }
+    let mut values = [0.0f64; TRUNK_LEVELS];
+    let mut n = 0;
+    for k in 0..TRUNK_LEVELS {
+        let t = TRUNK_SKIP_LOW
+            + (1.0 - TRUNK_SKIP_LOW - TRUNK_SKIP_HIGH) * (k as f64 + 0.5) / TRUNK_LEVELS as f64;
+        let v = crotch.y + t * span;
+        let axis = crotch.x + (top.x - crotch.x) * (v - crotch.y) / (top.y - crotch.y);
+        zones::crossings(plane, v, scratch);
+        // The inside interval around the axis: crossings alternate out/in along u. The
+        // axis outside the silhouette means the middle of the trunk is missing: the
+        // largest asymmetry.
+        let i = scratch.iter().position(|c| c.u > axis).unwrap_or(0);
+        values[n] = if i % 2 == 1 {
+            let (l, r) = (axis - scratch[i - 1].u, scratch[i].u - axis);
+            (r - l).abs() / (r + l).max(f64::MIN_POSITIVE)
+        } else {
+            1.0
+        };
+        n += 1;
+    }
+    let v = &mut values[..n];
+    v.sort_by(f64::total_cmp);
+    Some(v[n / 2])
+}

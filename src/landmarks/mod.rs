@@ -168,12 +168,30 @@ pub enum FrameEdge {
 pub enum Verdict {
     NoPerson,
     MultiplePeople,
-    CutOff { view: View, edge: FrameEdge },
-    ArmsTouchingTorso { left: bool, right: bool },
+    CutOff {
+        view: View,
+        edge: FrameEdge,
+    },
+    ArmsTouchingTorso {
+        left: bool,
+        right: bool,
+    },
     LegsTogether,
-    UnderExposed { view: View },
-    OverExposed { view: View },
-    OffMark { dx_m: f64, dz_m: f64 },
+    UnderExposed {
+        view: View,
+    },
+    OverExposed {
+        view: View,
+    },
+    OffMark {
+        dx_m: f64,
+        dz_m: f64,
+    },
+    /// The trunk's outline is lopsided beyond any body's asymmetry: part of the person
+    /// matched the backdrop and is missing from the silhouette.
+    BlendsIntoBackdrop {
+        view: View,
+    },
 }
 
 impl Verdict {
@@ -212,6 +230,11 @@ impl Verdict {
             Verdict::OverExposed { view } => {
                 format!("The {} camera's picture is too bright.", view.name())
             }
+            Verdict::BlendsIntoBackdrop { view } => format!(
+                "Part of the body blends into the backdrop in the {} camera's picture: \
+                 clothing in a colour that stands out from the backdrop is needed to measure.",
+                view.name()
+            ),
             Verdict::OffMark { dx_m, dz_m } => {
                 format!(
                     "Step onto the mark ({:+.0} cm sideways, {:+.0} cm forward off).",
@@ -234,6 +257,10 @@ pub struct VerdictOptions {
     pub second_person_ratio: f32,
     /// Distance from the mark beyond which the subject is off the mark, metres.
     pub off_mark_m: f64,
+    /// Trunk asymmetry (front view, [`analysis::trunk_asymmetry`]) above which part of
+    /// the body is taken to have blended into the backdrop. A standing trunk is
+    /// symmetric about its axis to a few percent of its width; a missing side is tens.
+    pub max_trunk_asymmetry: f64,
 }
 
 impl Default for VerdictOptions {
@@ -244,6 +271,7 @@ impl Default for VerdictOptions {
             max_clipped_fraction: 0.3,
             second_person_ratio: 0.15,
             off_mark_m: 0.10,
+            max_trunk_asymmetry: 0.15,
         }
     }
 }
@@ -328,6 +356,9 @@ pub struct StationLandmarks {
     /// Height of the head top (soles on y = 0), metres; 0 when no person.
     pub stature_m: f64,
     pub verdicts: Vec<Verdict>,
+    /// Left-right asymmetry of the trunk in the front view (see
+    /// [`analysis::trunk_asymmetry`]); None when it could not be measured.
+    pub trunk_asymmetry: Option<f64>,
 }
 
 impl StationLandmarks {
@@ -408,6 +439,7 @@ pub struct SilhouetteExecutor {
     pub opts: SilhouetteOptions,
     front: ViewState,
     side: ViewState,
+    crossings: Vec<zones::Crossing>,
 }
 
 /// Fraction of the person box's height a traced contour must span to be the person (not a
@@ -446,6 +478,7 @@ impl SilhouetteExecutor {
             opts,
             front: state(View::Front),
             side: state(View::Side),
+            crossings: Vec::new(),
         }
     }
 
@@ -600,8 +633,11 @@ impl SilhouetteExecutor {
         out.landmarks.points.clear();
         out.landmarks.verdicts.clear();
         out.landmarks.stature_m = 0.0;
+        out.landmarks.trunk_asymmetry = None;
         if !out.front.contour.is_empty() && !out.side.contour.is_empty() {
             let ff = analyse_front(&out.front.plane);
+            out.landmarks.trunk_asymmetry =
+                analysis::trunk_asymmetry(&out.front.plane, &ff, &mut self.crossings);
             let sf = analyse_side(&out.side.plane);
             lift::lift_all(
                 &self.calib,
@@ -612,6 +648,15 @@ impl SilhouetteExecutor {
                 &self.opts,
                 out,
             );
+        }
+        if out
+            .landmarks
+            .trunk_asymmetry
+            .is_some_and(|a| a > self.opts.verdicts.max_trunk_asymmetry)
+        {
+            out.landmarks
+                .verdicts
+                .push(Verdict::BlendsIntoBackdrop { view: View::Front });
         }
         // Station verdicts: union of both views', without repeats.
         let mut all: Vec<Verdict> = Vec::new();

@@ -51,6 +51,10 @@ const ADAPT_ROW_STRIDE: u64 = 32;
 const ADAPT_MARGIN_PX: u32 = 24;
 /// Sensor noise assumed when the model was learned from a single frame (8-bit units).
 const DEFAULT_NOISE_SIGMA: f32 = 4.0;
+/// Range of plausible frame exposure gains (a locked camera drifts by a few percent; a
+/// larger change is a new lighting the model has to learn, not a gain to divide out).
+const MIN_GAIN: f32 = 0.8;
+const MAX_GAIN: f32 = 1.25;
 /// Width of the border strips used to key a still image's backdrop (pixels).
 const KEY_BORDER_PX: u32 = 12;
 /// Rows averaged (each side) when smoothing the keyed backdrop colour.
@@ -148,6 +152,8 @@ pub struct SegmentOptions {
     /// Bridge shadow-like cells between foreground cells of a column (see
     /// `bridge_columns`).
     pub bridge_columns: bool,
+    /// Keep holes open that look like the backdrop (see `segment`); else fill every hole.
+    pub open_holes: bool,
 }
 
 impl Default for SegmentOptions {
@@ -162,6 +168,7 @@ impl Default for SegmentOptions {
             adapt_rate: 0.05,
             min_person_fraction: 0.01,
             bridge_columns: true,
+            open_holes: true,
         }
     }
 }
@@ -229,6 +236,8 @@ pub struct SegmentStats {
     pub clipped_low: f32,
     /// Frames segmented so far by this model.
     pub frame_index: u64,
+    /// Exposure gain of the frame against the model (1 when it could not be estimated).
+    pub gain: f32,
     /// Full-resolution pixels re-tested along the border.
     pub band_px: u32,
     /// Wall time of the phases.
@@ -279,7 +288,13 @@ pub struct BackgroundModel {
     /// Shadow zone of every pixel (1 in the zone); see the module docs.
     zone: Vec<u8>,
     frames: u64,
+    /// Exposure gain of the current frame against the model (see [`Self::estimate_gain`]).
+    gain: f32,
+    /// The person's box in the previous frame (kept out of the gain estimate).
+    last_box: Option<PixelBox>,
     // Scratch.
+    gain_samples: Vec<f32>,
+    hole_evidence: Vec<u64>,
     coarse: Vec<u8>,
     coarse_clean: Vec<u8>,
     coarse_body: Vec<u8>,
@@ -340,6 +355,11 @@ struct ModelPlane {
 /// [`MASK_ON`], unchanged 0.
 const WEAK: u8 = 2;
 const BRIDGED: u8 = 253; // odd: the majority filter counts `v & 1`
+/// Holes of fewer coarse cells are always filled (noise inside the body).
+const OPEN_HOLE_MIN_CELLS: u64 = 8;
+/// A hole stays open when at least this fraction of its cells is background evidence.
+const OPEN_HOLE_FRACTION: f64 = 0.5;
+
 /// Marks a column without an open run in [`bridge_columns`].
 const NO_RUN: u32 = u32::MAX;
 
@@ -406,6 +426,10 @@ impl BackgroundModel {
             row_rgb: [Vec::new(), Vec::new(), Vec::new()],
             zone: vec![1; n],
             frames: 0,
+            gain: 1.0,
+            last_box: None,
+            gain_samples: Vec::new(),
+            hole_evidence: Vec::new(),
             coarse: Vec::new(),
             coarse_clean: Vec::new(),
             coarse_body: Vec::new(),
@@ -567,7 +591,8 @@ impl BackgroundModel {
         self.px[i].color()
     }
 
-    /// Horprasert-style foreground test of pixel index `i` with colour `p`.
+    /// Horprasert-style foreground test of pixel index `i` with colour `p`, against the
+    /// model scaled by the frame's exposure gain.
     #[inline(always)]
     fn is_foreground(&self, i: usize, p: [u8; 3]) -> bool {
         let m = self.px[i];
@@ -580,6 +605,10 @@ impl BackgroundModel {
         let dd = dr * dr + dg * dg + db * db;
         let de = dr * er + dg * eg + db * eb;
         let o = &self.opts;
+        let g = self.gain;
+        let gm1 = g - 1.0;
+        // |I - gE|^2 = |d - (g-1)E|^2
+        let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
         let chroma_ee = dd * ee - de * de; // |I - alpha E|^2 |E|^2
         let ck = o.chroma_k * o.chroma_k;
         let darkest = if m.in_zone() {
@@ -587,20 +616,83 @@ impl BackgroundModel {
         } else {
             o.lit_min_brightness
         };
-        dd > tau2
+        dg2 > tau2
             && (chroma_ee > ck * tau2 * ee
-                || de < (darkest - 1.0) * ee
-                || de > (o.highlight_max_brightness - 1.0) * ee)
+                || de < (g * darkest - 1.0) * ee
+                || de > (g * o.highlight_max_brightness - 1.0) * ee)
     }
 
-    /// True when pixel `i` differs from the model beyond its noise radius (foreground or
-    /// a shadow / exposure change).
+    /// True when pixel `i` differs from the gain-scaled model beyond its noise radius
+    /// (foreground or a shadow / exposure change).
     #[inline(always)]
     fn is_changed(&self, i: usize, p: [u8; 3]) -> bool {
         let m = self.px[i];
         let e = m.color();
-        let d = [0, 1, 2].map(|c| p[c] as f32 - e[c]);
+        let g = self.gain;
+        let d = [0, 1, 2].map(|c| p[c] as f32 - g * e[c]);
         d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > m.radius2()
+    }
+
+    /// The frame's exposure gain against the model: the median brightness ratio
+    /// `alpha = I.E / |E|^2` over a sparse grid of pixels away from the person's last box
+    /// whose colour is the model's up to brightness (low chromaticity distortion), not
+    /// clipped. Exposure flicker and drift scale the whole backdrop; the person covers a
+    /// minority of the sample, and the chromaticity gate drops most of it. Without enough
+    /// samples, or when the estimate is implausible for an exposure change, the gain is 1.
+    fn estimate_gain(&mut self, raw: &[u8]) -> f32 {
+        const MIN_SAMPLES: usize = 64;
+        let (w, h) = (self.width as usize, self.height as usize);
+        // About a thousand samples or more, at most every 16th pixel (3600 at 720p).
+        let step = (((w * h) as f64 / 1024.0).sqrt() as usize).clamp(1, 16);
+        let keep_out = self.last_box.map(|b| {
+            (
+                b.min_x.saturating_sub(ADAPT_MARGIN_PX) as usize,
+                b.min_y.saturating_sub(ADAPT_MARGIN_PX) as usize,
+                (b.max_x + ADAPT_MARGIN_PX) as usize,
+                (b.max_y + ADAPT_MARGIN_PX) as usize,
+            )
+        });
+        self.gain_samples.clear();
+        let ck2 = self.opts.chroma_k * self.opts.chroma_k;
+        for y in (step / 2..h).step_by(step) {
+            for x in (step / 2..w).step_by(step) {
+                if let Some((x0, y0, x1, y1)) = keep_out {
+                    if x >= x0 && x < x1 && y >= y0 && y < y1 {
+                        continue;
+                    }
+                }
+                let i = y * w + x;
+                let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                if p.iter().any(|&v| v >= CLIP_HIGH_LUMA || v <= CLIP_LOW_LUMA) {
+                    continue;
+                }
+                let m = self.px[i];
+                let e = m.color();
+                let ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+                if ee < 400.0 {
+                    continue; // too dark a model for a ratio
+                }
+                let pe = p[0] as f32 * e[0] + p[1] as f32 * e[1] + p[2] as f32 * e[2];
+                let alpha = pe / ee;
+                let c = [0, 1, 2].map(|k| p[k] as f32 - alpha * e[k]);
+                if c[0] * c[0] + c[1] * c[1] + c[2] * c[2] > ck2 * m.radius2() {
+                    continue;
+                }
+                self.gain_samples.push(alpha);
+            }
+        }
+        if self.gain_samples.len() < MIN_SAMPLES {
+            return 1.0;
+        }
+        let mid = self.gain_samples.len() / 2;
+        let (_, &mut g, _) = self
+            .gain_samples
+            .select_nth_unstable_by(mid, f32::total_cmp);
+        if (MIN_GAIN..=MAX_GAIN).contains(&g) {
+            g
+        } else {
+            1.0
+        }
     }
 
     /// Colour distance to the model of the pixel nearest (x, y) inside the frame (8-bit
@@ -672,10 +764,16 @@ impl BackgroundModel {
         let (mut luma_sum, mut hi, mut lo) = (0u64, 0u64, 0u64);
         let o = self.opts;
         let ck2 = o.chroma_k * o.chroma_k;
+        // Brightness bounds about the frame's exposure gain g: alpha = 1 + d.E/|E|^2 is
+        // compared with g * bound, so d.E is compared with (g * bound - 1) |E|^2.
+        let g = self.estimate_gain(raw);
+        self.gain = g;
+        stats.gain = g;
+        let gm1 = g - 1.0;
         let (klo_zone, klo_lit, khi) = (
-            o.shadow_min_brightness - 1.0,
-            o.lit_min_brightness - 1.0,
-            o.highlight_max_brightness - 1.0,
+            g * o.shadow_min_brightness - 1.0,
+            g * o.lit_min_brightness - 1.0,
+            g * o.highlight_max_brightness - 1.0,
         );
         let klo_step = klo_zone - klo_lit;
         for cy in 0..ch {
@@ -728,7 +826,9 @@ impl BackgroundModel {
                 let tau2 = tau2 as f32;
                 let klo = klo_lit + zone as f32 * klo_step;
                 let chroma_ee = dd * ee - de * de;
-                let cand = dd > tau2;
+                // |I - gE|^2 = |d - (g-1)E|^2
+                let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
+                let cand = dg2 > tau2;
                 let fg = cand & ((chroma_ee > ck2 * tau2 * ee) | (de < klo * ee) | (de > khi * ee));
                 // 255: foreground; 1: changed, but explained as shadow or exposure (WEAK).
                 *o = (fg as u8).wrapping_neg() | (cand as u8) << 1;
@@ -764,13 +864,45 @@ impl BackgroundModel {
             Some(c) if self.runs.components[c].area >= min_area.max(1) => c,
             _ => {
                 self.frames += 1;
+                self.last_box = None;
                 self.adapt(frame, None);
                 return Ok(stats);
             }
         };
         stats.largest_px = self.runs.components[body].area * cell;
-        self.runs
-            .write_filled(body, &mut self.coarse_body, &mut self.hole_runs);
+        // Holes: filled, unless they look like the backdrop seen through a gap (between
+        // an arm and the trunk, between the feet): most of their cells unchanged, or
+        // darkened like a shadow inside the shadow zone. A part of the person that only
+        // matches the backdrop in places (a white shirt on a white backdrop) keeps enough
+        // changed cells to be filled.
+        imgproc::write_component(&self.runs, body, &mut self.coarse_body);
+        if o.open_holes {
+            let (coarse, zone) = (&self.coarse, &self.coarse_model.zone);
+            imgproc::fill_holes_selective(
+                &mut self.coarse_body,
+                cw as u32,
+                ch as u32,
+                &mut self.hole_runs,
+                &mut self.hole_evidence,
+                |y, x0, x1| {
+                    let row = y * cw;
+                    coarse[row + x0..row + x1]
+                        .iter()
+                        .zip(&zone[row + x0..row + x1])
+                        .filter(|&(&c, &z)| c == 0 || (c == WEAK && z != 0))
+                        .count() as u64
+                },
+                OPEN_HOLE_MIN_CELLS,
+                OPEN_HOLE_FRACTION,
+            );
+        } else {
+            imgproc::fill_holes(
+                &mut self.coarse_body,
+                cw as u32,
+                ch as u32,
+                &mut self.hole_runs,
+            );
+        }
 
         stats.phase_ms.components = clock.lap();
         // 3. Upsample, then re-test the band along the border at full resolution.
@@ -895,6 +1027,7 @@ impl BackgroundModel {
         };
         self.frames += 1;
         stats.phase_ms.stats = clock.lap();
+        self.last_box = Some(pb);
         self.adapt(frame, Some(pb));
         stats.phase_ms.adapt = clock.lap();
         Ok(stats)
@@ -930,12 +1063,10 @@ impl BackgroundModel {
                 if self.is_foreground(i, p) {
                     continue; // someone else, or a change too large to learn silently
                 }
+                // The raw colour: the model follows a lasting drift of the light, so the
+                // gain only has the frame's flicker about it to explain.
                 let e = self.px[i].color();
-                let m = [
-                    e[0] + rate * (p[0] as f32 - e[0]),
-                    e[1] + rate * (p[1] as f32 - e[1]),
-                    e[2] + rate * (p[2] as f32 - e[2]),
-                ];
+                let m = [0, 1, 2].map(|c| e[c] + rate * (p[c] as f32 - e[c]));
                 let t = self.px[i].radius2();
                 self.set_model_xy(i, x, y, m, t);
             }
@@ -1208,6 +1339,40 @@ mod tests {
             0, 0, F,
         ];
         assert_eq!(c, want);
+    }
+
+    #[test]
+    fn the_frame_exposure_is_divided_out() {
+        // The exposure drops by 10 % when the person steps in; the person wears the
+        // backdrop's colour a third brighter than it. Against the unscaled model the
+        // person is 1.2 times the backdrop (inside the highlight tolerance, so nothing is
+        // found); against the model at the frame's exposure it is 1.33 times.
+        let (w, h) = (120, 100);
+        let empty = scene(w, h, false, false, 7);
+        let mut frame = scaled(&scene(w, h, false, false, 8), 0.9);
+        for y in 20..90 {
+            for x in 40..70 {
+                let e = empty.get_pixel(x, y).0;
+                frame.put_pixel(x, y, image::Rgb(e.map(|v| (v as f32 * 1.2) as u8)));
+            }
+        }
+        let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+        m.learn(&empty).unwrap();
+        let mut mask = Mask::new(1, 1);
+        let st = m.segment(&frame, &mut mask).unwrap();
+        assert!((st.gain - 0.9).abs() < 0.02, "gain {}", st.gain);
+        let b = st.person_box.expect("person");
+        assert!(
+            b.min_x >= 38 && b.max_x <= 72 && b.min_y >= 18 && b.max_y <= 92,
+            "{b:?}"
+        );
+        assert!(st.person_px > 30 * 70 * 9 / 10, "{}", st.person_px);
+        // The same frame at the model's exposure: the gain is 1 and the person, 1.2 times
+        // the backdrop, is within the exposure tolerance.
+        let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+        m.learn(&empty).unwrap();
+        let st = m.segment(&scaled(&frame, 1.0 / 0.9), &mut mask).unwrap();
+        assert!((st.gain - 1.0).abs() < 0.02, "gain {}", st.gain);
     }
 
     #[test]

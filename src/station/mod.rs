@@ -351,6 +351,7 @@ fn blocks_fit(v: &Verdict) -> bool {
             | Verdict::LegsTogether
             | Verdict::UnderExposed { .. }
             | Verdict::OverExposed { .. }
+            | Verdict::BlendsIntoBackdrop { .. }
     )
 }
 
