@@ -182,15 +182,7 @@ impl RunComponents {
     /// regions (4-connected) that do not reach the image border become foreground.
     /// `hole_scratch` is scratch for the background labelling.
     pub fn write_filled(&self, comp: usize, out: &mut Vec<u8>, hole_scratch: &mut RunComponents) {
-        let (w, h) = (self.width as usize, self.height as usize);
-        out.clear();
-        out.resize(w * h, 0);
-        for (r, run) in self.runs.iter().enumerate() {
-            if self.label[r] as usize == comp {
-                let y = run.y as usize;
-                out[y * w + run.x0 as usize..y * w + run.x1 as usize].fill(super::MASK_ON);
-            }
-        }
+        write_component(self, comp, out);
         fill_holes(out, self.width, self.height, hole_scratch);
     }
 }
