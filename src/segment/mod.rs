@@ -24,9 +24,17 @@
 //! without per-pixel division: with `d = I - E`, `|I - alpha E|^2 |E|^2 = |d|^2 |E|^2 -
 //! (d.E)^2` and `alpha - 1 = d.E / |E|^2`.
 //!
+//! Every frame is first put at the model's exposure: its gain `g` is the median
+//! brightness ratio of a sparse sample of pixels away from the person's last box that
+//! keep the model's chromaticity ([`BackgroundModel::estimate_gain`]), and the tests
+//! compare with `g E` (flicker and exposure drift move the whole backdrop; the brightness
+//! tolerances then only have to cover what is left about it).
+//!
 //! Per frame: the test runs on every second pixel of every second row (a 2x coarse
 //! grid), the coarse mask is cleaned by a 3x3 majority filter, its largest 8-connected
-//! component is kept with its holes filled, and the full-resolution mask is that
+//! component is kept with its holes filled (except holes that look like the backdrop
+//! seen through a gap: mostly unchanged, or shadowed inside the shadow zone), and the
+//! full-resolution mask is that
 //! component upsampled, with every pixel within one coarse cell of its border re-tested
 //! at full resolution (then a 3x3 majority among those pixels). The model keeps
 //! adapting slowly (a running mean) on a rotating band of rows, away from the person.
