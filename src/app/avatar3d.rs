@@ -179,7 +179,12 @@ const UNIFORM_BYTES: u64 = 64 + 16 + 16;
 
 /// GPU state of the avatar view, kept in egui-wgpu's callback resources.
 pub struct AvatarResources {
+    /// Back faces culled: for closed meshes, whose winding is made outward at upload.
+    /// Half the triangles never reach the rasteriser (on a software renderer the
+    /// per-triangle cost dominates the avatar's render).
     mesh_pipeline: wgpu::RenderPipeline,
+    /// Both faces drawn: for meshes that enclose no volume (no outside to tell).
+    mesh_pipeline_two_sided: wgpu::RenderPipeline,
     blit_pipeline: wgpu::RenderPipeline,
     uniform_buffer: wgpu::Buffer,
     uniform_bind_group: wgpu::BindGroup,
@@ -204,6 +209,9 @@ struct Target {
 
 struct GpuMesh {
     generation: u64,
+    /// The mesh is closed enough to have an outside, and the triangles were sent
+    /// wound counter-clockwise seen from it: back faces can be culled.
+    cull_back: bool,
     vertices: wgpu::Buffer,
     indices: wgpu::Buffer,
     index_count: u32,
@@ -250,45 +258,50 @@ impl AvatarResources {
             bind_group_layouts: &[Some(&uniform_layout)],
             immediate_size: 0,
         });
-        let mesh_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("avatar_mesh"),
-            layout: Some(&mesh_layout),
-            vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_mesh"),
-                buffers: &[Some(wgpu::VertexBufferLayout {
-                    array_stride: 6 * 4,
-                    step_mode: wgpu::VertexStepMode::Vertex,
-                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
-                })],
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-            },
-            primitive: wgpu::PrimitiveState {
-                topology: wgpu::PrimitiveTopology::TriangleList,
-                cull_mode: None,
-                ..Default::default()
-            },
-            depth_stencil: Some(wgpu::DepthStencilState {
-                format: DEPTH_FORMAT,
-                depth_write_enabled: Some(true),
-                depth_compare: Some(wgpu::CompareFunction::Less),
-                stencil: wgpu::StencilState::default(),
-                bias: wgpu::DepthBiasState::default(),
-            }),
-            multisample: wgpu::MultisampleState::default(),
-            fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_mesh"),
-                targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOUR_FORMAT,
-                    blend: None,
-                    write_mask: wgpu::ColorWrites::ALL,
-                })],
-                compilation_options: wgpu::PipelineCompilationOptions::default(),
-            }),
-            multiview_mask: None,
-            cache: None,
-        });
+        let mesh_pipeline_for = |cull_mode| {
+            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+                label: Some("avatar_mesh"),
+                layout: Some(&mesh_layout),
+                vertex: wgpu::VertexState {
+                    module: &module,
+                    entry_point: Some("vs_mesh"),
+                    buffers: &[Some(wgpu::VertexBufferLayout {
+                        array_stride: 6 * 4,
+                        step_mode: wgpu::VertexStepMode::Vertex,
+                        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+                    })],
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                },
+                primitive: wgpu::PrimitiveState {
+                    topology: wgpu::PrimitiveTopology::TriangleList,
+                    front_face: wgpu::FrontFace::Ccw,
+                    cull_mode,
+                    ..Default::default()
+                },
+                depth_stencil: Some(wgpu::DepthStencilState {
+                    format: DEPTH_FORMAT,
+                    depth_write_enabled: Some(true),
+                    depth_compare: Some(wgpu::CompareFunction::Less),
+                    stencil: wgpu::StencilState::default(),
+                    bias: wgpu::DepthBiasState::default(),
+                }),
+                multisample: wgpu::MultisampleState::default(),
+                fragment: Some(wgpu::FragmentState {
+                    module: &module,
+                    entry_point: Some("fs_mesh"),
+                    targets: &[Some(wgpu::ColorTargetState {
+                        format: COLOUR_FORMAT,
+                        blend: None,
+                        write_mask: wgpu::ColorWrites::ALL,
+                    })],
+                    compilation_options: wgpu::PipelineCompilationOptions::default(),
+                }),
+                multiview_mask: None,
+                cache: None,
+            })
+        };
+        let mesh_pipeline = mesh_pipeline_for(Some(wgpu::Face::Back));
+        let mesh_pipeline_two_sided = mesh_pipeline_for(None);
         let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
             label: Some("avatar_blit"),
             entries: &[
@@ -348,6 +361,7 @@ impl AvatarResources {
         });
         AvatarResources {
             mesh_pipeline,
+            mesh_pipeline_two_sided,
             blit_pipeline,
             uniform_buffer,
             uniform_bind_group,
@@ -439,11 +453,17 @@ impl AvatarResources {
             ]);
         }
         let nv = mesh.positions.len() as u32;
+        let orientation = winding_orientation(mesh);
         self.index_scratch.clear();
         // Triangles with out-of-range indices are skipped rather than sent to the GPU.
         for t in &mesh.triangles {
             if t.iter().all(|&i| i < nv) {
-                self.index_scratch.extend_from_slice(t);
+                if orientation == Some(false) {
+                    // Inward winding: sent reversed, so that the outside is the front.
+                    self.index_scratch.extend_from_slice(&[t[0], t[2], t[1]]);
+                } else {
+                    self.index_scratch.extend_from_slice(t);
+                }
             }
         }
         let vbytes: &[u8] = bytemuck::cast_slice(&self.vertex_scratch);
@@ -467,6 +487,7 @@ impl AvatarResources {
             let (cv, ci) = (need_v * 3 / 2, need_i * 3 / 2);
             self.mesh = Some(GpuMesh {
                 generation,
+                cull_back: false,
                 vertices: buffer(
                     cv.next_multiple_of(4),
                     wgpu::BufferUsages::VERTEX,
@@ -491,9 +512,40 @@ impl AvatarResources {
             }
             m.index_count = self.index_scratch.len() as u32;
             m.generation = generation;
+            m.cull_back = orientation.is_some();
         }
     }
 }
+
+/// Whether `mesh`'s triangles are wound counter-clockwise seen from outside (`true`)
+/// or from inside (`false`), from the sign of the volume they enclose; `None` when the
+/// mesh has no outside to tell: it encloses next to nothing, or it is open (the volume
+/// "enclosed" by an open mesh depends on the point it is measured from, that of a
+/// closed one does not; a body with small holes is close enough to closed). Then both
+/// faces must be drawn.
+pub fn winding_orientation(mesh: &TriMesh) -> Option<bool> {
+    let bounds = mesh.bounds()?;
+    // Six times the signed volume, seen from the box's centre and from its corner.
+    let (centre, corner) = (bounds.center(), bounds.min);
+    let (mut from_centre, mut from_corner) = (0.0f64, 0.0f64);
+    for t in &mesh.triangles {
+        let at = |k: usize| mesh.positions.get(t[k] as usize).copied();
+        if let (Some(p), Some(q), Some(r)) = (at(0), at(1), at(2)) {
+            from_centre += (p - centre).dot((q - centre).cross(r - centre));
+            from_corner += (p - corner).dot((q - corner).cross(r - corner));
+        }
+    }
+    let size = bounds.size();
+    let box_volume = size.x * size.y * size.z;
+    // A body fills a good part of its bounding box; a thousandth is next to nothing.
+    let enclosed = box_volume > 0.0 && (from_centre / 6.0).abs() >= 1e-3 * box_volume;
+    let closed = (from_centre - from_corner).abs() <= CLOSED_VOLUME_TOLERANCE * from_centre.abs();
+    (enclosed && closed).then_some(from_centre > 0.0)
+}
+
+/// Relative difference of the volumes seen from two points up to which a mesh counts as
+/// closed (small holes such as a body's eyes or mouth change it by far less).
+const CLOSED_VOLUME_TOLERANCE: f64 = 0.02;
 
 /// One frame's avatar view: what to draw and from where.
 pub struct AvatarCallback {
@@ -573,6 +625,10 @@ impl egui_wgpu::CallbackTrait for AvatarCallback {
             return Vec::new();
         }
         res.shown = Some(key);
+        super::trace::ev(
+            "avatar_render",
+            res.mesh.as_ref().map_or(0, |m| m.index_count as u64),
+        );
         let vp = self.camera.view_proj(size[0] as f32 / size[1] as f32);
         let eye = self.camera.eye();
         let mut uniforms = [0f32; 24];
@@ -613,7 +669,11 @@ impl egui_wgpu::CallbackTrait for AvatarCallback {
         });
         if let (Some(m), true) = (res.mesh.as_ref(), self.mesh.is_some()) {
             if m.index_count > 0 {
-                pass.set_pipeline(&res.mesh_pipeline);
+                pass.set_pipeline(if m.cull_back {
+                    &res.mesh_pipeline
+                } else {
+                    &res.mesh_pipeline_two_sided
+                });
                 pass.set_bind_group(0, &res.uniform_bind_group, &[]);
                 pass.set_vertex_buffer(0, m.vertices.slice(..));
                 pass.set_index_buffer(m.indices.slice(..), wgpu::IndexFormat::Uint32);
@@ -712,6 +772,44 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// A closed box (12 triangles, wound counter-clockwise seen from outside).
+    fn unit_box() -> TriMesh {
+        let positions: Vec<glam::DVec3> = (0..8)
+            .map(|k| glam::DVec3::new((k & 1) as f64, ((k >> 1) & 1) as f64, ((k >> 2) & 1) as f64))
+            .collect();
+        let triangles = vec![
+            [0, 2, 1],
+            [1, 2, 3], // z = 0, seen from -z
+            [4, 5, 6],
+            [5, 7, 6], // z = 1
+            [0, 1, 4],
+            [1, 5, 4], // y = 0
+            [2, 6, 3],
+            [3, 6, 7], // y = 1
+            [0, 4, 2],
+            [2, 4, 6], // x = 0
+            [1, 3, 5],
+            [3, 7, 5], // x = 1
+        ];
+        TriMesh::new(positions, triangles)
+    }
+
+    #[test]
+    fn winding_is_told_from_the_enclosed_volume() {
+        let mut m = unit_box();
+        assert_eq!(winding_orientation(&m), Some(true));
+        for t in &mut m.triangles {
+            t.swap(1, 2);
+        }
+        assert_eq!(winding_orientation(&m), Some(false));
+        // Without one side the box is open: no outside to tell.
+        m.triangles.drain(0..2);
+        assert_eq!(winding_orientation(&m), None);
+        // A flat sheet encloses nothing.
+        m.triangles.truncate(2);
+        assert_eq!(winding_orientation(&m), None);
     }
 
     #[test]

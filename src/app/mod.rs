@@ -26,6 +26,7 @@ pub mod record;
 pub mod runner;
 pub mod session;
 pub mod stats;
+pub mod trace;
 
 pub use live::{run_live_cli, LiveArgs};
 
@@ -424,6 +425,8 @@ struct StationApp {
     closing: bool,
     /// Arrival time of the pair behind the snapshot taken this frame (latency figure).
     pending_arrival: Option<Instant>,
+    /// Snapshots published by the process thread when the slot was last looked at.
+    published_seen: u64,
 }
 
 /// Frames an automatic screenshot waits beyond its frame for a fitted avatar.
@@ -433,6 +436,12 @@ const SCREENSHOT_GRACE_FRAMES: u64 = 600;
 /// up to 10 renders a second, and the software renderer is spared a mesh pass per
 /// snapshot.
 pub const AVATAR_PERIOD_S: f64 = 0.1;
+/// How much earlier than [`AVATAR_PERIOD_S`] a new avatar may be taken, so that with
+/// snapshots every 1/30 s it is taken on every third one, not the fourth.
+const AVATAR_PERIOD_SLACK_S: f64 = 0.015;
+/// How long after the avatar is due a frame is painted for it alone, when no snapshot
+/// came in the meantime (paused or ended source). Longer than a source frame interval.
+const AVATAR_FALLBACK_S: f64 = 0.1;
 
 /// Station messages of the current snapshot shown to the operator.
 const MESSAGES_SHOWN: usize = 4;
@@ -502,6 +511,7 @@ impl StationApp {
             summary,
             closing: false,
             pending_arrival: None,
+            published_seen: 0,
         })
     }
 
@@ -519,6 +529,7 @@ impl StationApp {
     /// Takes the newest snapshot, feeds the flow, takes its display images.
     fn poll_snapshot(&mut self) {
         let now = self.now_s();
+        self.published_seen = self.runner.controls.published.load(Ordering::SeqCst);
         if let Some(shown) = self.runner.snapshots.try_take() {
             let runner::ScreenSnapshot {
                 snap,
@@ -526,6 +537,7 @@ impl StationApp {
                 side_display,
             } = shown;
             self.snapshots_shown += 1;
+            trace::ev("snapshot", snap.frame_index);
             self.snap_meter.tick(now);
             self.pipeline_stats.add_all(&snap.timings_ms);
             self.pending_arrival = self.runner.controls.arrival(snap.frame_index);
@@ -1196,7 +1208,10 @@ impl StationApp {
             }
         }
         // The newest fit replaces the one on screen at most every AVATAR_PERIOD_S (the
-        // 3-D view is rendered again only then); a cleared avatar goes at once.
+        // 3-D view is rendered again only then), in a frame that shows a new snapshot
+        // anyway; a cleared avatar goes at once. A frame of its own is asked for only
+        // as a fallback, later than the next snapshot would come: each frame costs a
+        // whole window of software rendering and presenting.
         let latest = self.current.as_ref().and_then(|s| s.avatar.clone());
         let changed = match (&latest, &self.shown_avatar) {
             (Some(a), Some(b)) => !Arc::ptr_eq(a, b),
@@ -1204,7 +1219,8 @@ impl StationApp {
             _ => true,
         };
         let now = self.now_s();
-        let due = now - self.avatar_shown_s >= AVATAR_PERIOD_S;
+        let since = now - self.avatar_shown_s;
+        let due = since >= AVATAR_PERIOD_S - AVATAR_PERIOD_SLACK_S;
         let take = changed && (due || latest.is_none() || self.shown_avatar.is_none());
         if take {
             self.shown_avatar = latest;
@@ -1213,7 +1229,7 @@ impl StationApp {
         } else if changed {
             ui.ctx()
                 .request_repaint_after(std::time::Duration::from_secs_f64(
-                    (AVATAR_PERIOD_S - (now - self.avatar_shown_s)).max(0.0),
+                    (AVATAR_PERIOD_S - since).max(0.0) + AVATAR_FALLBACK_S,
                 ));
         }
         let mesh = self.shown_avatar.clone();
@@ -1281,6 +1297,7 @@ impl StationApp {
 impl eframe::App for StationApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let t0 = Instant::now();
+        trace::ev("frame_start", self.frames);
         let ctx = ui.ctx().clone();
         if ctx.input(|i| i.viewport().close_requested()) {
             self.closing = true;
@@ -1313,6 +1330,7 @@ impl eframe::App for StationApp {
         egui::CentralPanel::no_frame().show(ui, |ui| self.views(ui));
 
         self.ui_stats.add("ui", t0.elapsed().as_secs_f64() * 1e3);
+        trace::ev("ui_done", self.frames);
         // The end of this frame (its present) is noted when egui-wgpu drops this
         // callback; a 1-point rectangle in the window's corner, so it is not culled.
         let probe = self.clock.probe(t0, self.pending_arrival.take());
@@ -1364,6 +1382,13 @@ impl eframe::App for StationApp {
             IDLE_REPAINT_MS
         };
         ctx.request_repaint_after(std::time::Duration::from_millis(wake_ms));
+        // The next snapshot wakes the screen; one published since the slot was looked at
+        // (it found the flag still clear) is picked up by a frame asked for here.
+        let c = &self.runner.controls;
+        c.wake_wanted.store(true, Ordering::SeqCst);
+        if c.published.load(Ordering::SeqCst) != self.published_seen {
+            ctx.request_repaint_after(SNAPSHOT_REPAINT_DELAY);
+        }
     }
 
     fn clear_color(&self, _visuals: &egui::Visuals) -> [f32; 4] {
@@ -1372,6 +1397,7 @@ impl eframe::App for StationApp {
     }
 
     fn on_exit(&mut self) {
+        trace::dump();
         self.write_summary();
         self.stop_recording();
     }
@@ -1497,12 +1523,13 @@ fn draw_view(
         if operator {
             for (k, (_, pts)) in o.parts.iter().enumerate() {
                 let c = PART_COLOURS[k % PART_COLOURS.len()];
-                for p in pts {
-                    painter.circle_filled(to_screen(*p), 2.0, c);
+                // Dots closer than a segment overlap anyway.
+                for p in screen_polyline(pts.iter().map(|p| to_screen(*p))) {
+                    painter.circle_filled(p, 2.0, c);
                 }
             }
             if o.avatar_outline.len() > 2 {
-                let pts: Vec<Pos2> = o.avatar_outline.iter().map(|p| to_screen(*p)).collect();
+                let pts = screen_polyline(o.avatar_outline.iter().map(|p| to_screen(*p)));
                 painter.add(egui::Shape::closed_line(
                     pts,
                     Stroke::new(1.0, AVATAR_OUTLINE_COLOUR),
@@ -1510,7 +1537,7 @@ fn draw_view(
             }
         }
         if o.contour.len() > 2 {
-            let pts: Vec<Pos2> = o.contour.iter().map(|p| to_screen(*p)).collect();
+            let pts = screen_polyline(o.contour.iter().map(|p| to_screen(*p)));
             painter.add(egui::Shape::closed_line(
                 pts,
                 Stroke::new(2.0, CONTOUR_COLOUR),
@@ -1547,6 +1574,25 @@ fn draw_view(
         Color32::WHITE,
     );
     Some(rect)
+}
+
+/// Shortest segment of an outline as drawn (points). The station's contours have a
+/// point every pixel or two of the camera frame, several per screen pixel once the frame
+/// is scaled into its view; every segment is a few triangles for the software
+/// rasteriser, so points closer than this to the last one kept are left out.
+const OUTLINE_MIN_SEGMENT: f32 = 2.5;
+
+/// The points of a closed outline on screen, without those closer than
+/// [`OUTLINE_MIN_SEGMENT`] to the previous point kept.
+fn screen_polyline(points: impl Iterator<Item = Pos2>) -> Vec<Pos2> {
+    let mut out: Vec<Pos2> = Vec::new();
+    for p in points {
+        match out.last() {
+            Some(last) if last.distance(p) < OUTLINE_MIN_SEGMENT => {}
+            _ => out.push(p),
+        }
+    }
+    out
 }
 
 /// Writes the screenshot PNG and `<stem>.layout.json` with the pixel rects of the views.
@@ -1695,6 +1741,17 @@ mod tests {
         }
         let now = 89.0 / 30.0;
         assert!((m.rate(now) - 31.0).abs() <= 1.0, "{}", m.rate(now));
+    }
+
+    #[test]
+    fn outlines_keep_points_a_segment_apart() {
+        let pts: Vec<Pos2> = (0..100).map(|k| Pos2::new(k as f32 * 0.5, 0.0)).collect();
+        let kept = screen_polyline(pts.into_iter());
+        assert_eq!(kept.first(), Some(&Pos2::new(0.0, 0.0)));
+        assert_eq!(kept.len(), 20);
+        assert!(kept
+            .windows(2)
+            .all(|w| w[0].distance(w[1]) >= OUTLINE_MIN_SEGMENT));
     }
 
     #[test]
