@@ -32,7 +32,7 @@ pub use live::{run_live_cli, LiveArgs};
 
 use crate::camera::StationCalibration;
 use crate::pipeline::{FitSnapshot, FrameProcessor, FrameSource, MeasurementValue, ViewOverlay};
-use avatar3d::{AvatarCallback, AvatarResources, OrbitCamera, ViewPreset};
+use avatar3d::{AvatarCallback, AvatarJob, AvatarRenderer, OrbitCamera, ViewPreset};
 use calib_wizard::{CalibrationWizard, WizardAction, WizardSettings, WizardStep, WizardView};
 use egui::{Color32, Pos2, Rect, RichText, Stroke, Vec2};
 use flow::{FlowAction, FlowConfig, FlowInput, FlowState, KioskFlow};
@@ -143,16 +143,12 @@ pub fn run(
             rs.renderer
                 .write()
                 .callback_resources
-                .insert(AvatarResources::new(&rs.device, rs.target_format));
-            rs.renderer
-                .write()
-                .callback_resources
                 .insert(frame_view::FrameViewResources::new(
                     &rs.device,
                     rs.target_format,
                 ));
             let ctx = cc.egui_ctx.clone();
-            let app = StationApp::new(
+            let mut app = StationApp::new(
                 source,
                 processor,
                 opts,
@@ -162,6 +158,20 @@ pub fn run(
                 Box::new(move || ctx.request_repaint_after(SNAPSHOT_REPAINT_DELAY)),
                 summary,
             )?;
+            let ctx = cc.egui_ctx.clone();
+            app.avatar = Some(AvatarRenderer::start(
+                rs.device.clone(),
+                rs.queue.clone(),
+                rs.target_format,
+                app.clock.clone(),
+                // A new picture is shown by the next snapshot's frame; this one is
+                // painted only when none comes sooner (see AVATAR_FALLBACK_S).
+                Box::new(move || {
+                    ctx.request_repaint_after(std::time::Duration::from_secs_f64(
+                        AVATAR_PICTURE_REPAINT_S,
+                    ))
+                }),
+            )?);
             Ok(Box::new(app))
         }),
     )
@@ -391,6 +401,10 @@ struct StationApp {
     shown_avatar: Option<Arc<crate::mesh::TriMesh>>,
     avatar_shown_s: f64,
     orbit: OrbitCamera,
+    /// Renders the avatar between frames (set once the window exists).
+    avatar: Option<AvatarRenderer>,
+    /// The picture drawn in the avatar view this frame shows a fitted avatar.
+    avatar_on_screen: bool,
     /// The operator zoomed by hand: stop fitting the avatar into the view.
     user_zoomed: bool,
     ui_meter: RateMeter,
@@ -439,6 +453,9 @@ pub const AVATAR_PERIOD_S: f64 = 0.1;
 /// How much earlier than [`AVATAR_PERIOD_S`] a new avatar may be taken, so that with
 /// snapshots every 1/30 s it is taken on every third one, not the fourth.
 const AVATAR_PERIOD_SLACK_S: f64 = 0.015;
+/// How long after a new avatar picture is ready a frame is painted for it alone, when
+/// no snapshot's frame came in the meantime (seconds).
+const AVATAR_PICTURE_REPAINT_S: f64 = 0.1;
 /// How long after the avatar is due a frame is painted for it alone, when no snapshot
 /// came in the meantime (paused or ended source). Longer than a source frame interval.
 const AVATAR_FALLBACK_S: f64 = 0.1;
@@ -482,6 +499,8 @@ impl StationApp {
             shown_avatar: None,
             avatar_shown_s: f64::NEG_INFINITY,
             orbit: OrbitCamera::default(),
+            avatar: None,
+            avatar_on_screen: false,
             user_zoomed: false,
             ui_meter: RateMeter::default(),
             snap_meter: RateMeter::default(),
@@ -1252,16 +1271,31 @@ impl StationApp {
         let body_ndc = mesh
             .as_deref()
             .and_then(|m| avatar3d::ndc_bounds(m, &self.orbit, aspect));
-        painter.add(eframe::egui_wgpu::Callback::new_paint_callback(
-            avatar_rect,
-            AvatarCallback {
-                mesh,
-                generation: self.avatar_generation,
-                camera: self.orbit,
-                size_points: [avatar_rect.width(), avatar_rect.height()],
-                body_ndc,
-            },
-        ));
+        let ppp = ui.ctx().pixels_per_point();
+        let job = AvatarJob {
+            mesh,
+            generation: self.avatar_generation,
+            camera: self.orbit,
+            size_px: [
+                (avatar_rect.width() * ppp).round().max(1.0) as u32,
+                (avatar_rect.height() * ppp).round().max(1.0) as u32,
+            ],
+            body_ndc,
+        };
+        let presented = self.clock.frames();
+        self.avatar_on_screen = false;
+        if let Some(r) = self.avatar.as_mut() {
+            r.request(job, presented);
+            // The newest finished picture (it may lag the request by a frame); none
+            // at all once the avatar has been cleared.
+            if let Some(picture) = r.picture().filter(|p| p.has_mesh && has_mesh) {
+                self.avatar_on_screen = true;
+                painter.add(eframe::egui_wgpu::Callback::new_paint_callback(
+                    avatar_rect,
+                    AvatarCallback { picture },
+                ));
+            }
+        }
         self.layout.avatar = Some(avatar_rect);
         if !has_mesh {
             painter.text(
@@ -1342,7 +1376,7 @@ impl eframe::App for StationApp {
         // Screenshot and exit handling (CLI --screenshot / --exit-after-frames): the
         // automatic screenshot is due after N frames and waits (at most
         // SCREENSHOT_GRACE_FRAMES more) for a frame that shows a fitted avatar.
-        let has_avatar = self.current.as_ref().is_some_and(|s| s.avatar.is_some());
+        let has_avatar = self.avatar_on_screen;
         if let (Some(n), Some(p)) = (self.screenshot_at, self.screenshot_path.clone()) {
             let idle = matches!(self.screenshot, ScreenshotState::None);
             if idle
