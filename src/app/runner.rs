@@ -3,9 +3,10 @@
 //! recorder), a newest-wins [`LatestSlot`] hands them to `process` (the
 //! [`FrameProcessor`]), whose [`FitSnapshot`]s go to another slot the screen reads.
 //!
-//! `process` also prepares the camera frames of each snapshot for display
-//! ([`super::display`]: box-filtered to the size of the view on screen, RGBA), so the
-//! screen's own thread only uploads them.
+//! `capture` also prepares the camera frames of each pair for display
+//! ([`super::display`]: box-filtered to the size of the view on screen, RGBA), for a
+//! paced source while the pair waits for its time, so that neither the station's
+//! processing nor the screen's own thread waits for it (the screen only uploads them).
 //!
 //! The screen never waits for either thread; a slow processor drops frames (counted),
 //! a disconnected camera is shown and retried; a source that ends leaves the last
@@ -121,7 +122,7 @@ pub struct ScreenSnapshot {
 pub struct Runner {
     pub controls: Arc<Controls>,
     pub snapshots: Arc<LatestSlot<ScreenSnapshot>>,
-    pairs: Arc<LatestSlot<FramePair>>,
+    pairs: Arc<LatestSlot<SourcePair>>,
     process: Option<JoinHandle<()>>,
 }
 
@@ -139,7 +140,7 @@ impl Runner {
             wake_wanted: AtomicBool::new(true),
             ..Controls::default()
         });
-        let pairs = Arc::new(LatestSlot::<FramePair>::new());
+        let pairs = Arc::new(LatestSlot::<SourcePair>::new());
         let snapshots = Arc::new(LatestSlot::<ScreenSnapshot>::new());
         let fps = source.fps().filter(|f| f.is_finite() && *f > 0.0);
         {
@@ -158,7 +159,7 @@ impl Runner {
                 .name("process".into())
                 .spawn(move || {
                     let mut downscaler = Downscaler::default();
-                    while let Some(pair) = pairs.take() {
+                    while let Some(SourcePair { pair, display }) = pairs.take() {
                         if controls.stop.load(Ordering::Relaxed) {
                             break;
                         }
@@ -178,17 +179,19 @@ impl Runner {
                         let snap = processor.process(&pair);
                         super::trace::ev("process_end", pair.index);
                         controls.add_stat("process", t0);
-                        let t1 = Instant::now();
-                        let target = controls.view_px.lock().ok().and_then(|v| *v);
-                        let mut prepare = |f: &Option<Arc<image::RgbImage>>| {
-                            f.as_ref().map(|f| {
-                                let factor = display_factor(f.width(), f.height(), target);
-                                downscaler.prepare(f, factor)
-                            })
-                        };
-                        let front_display = prepare(&snap.front_frame);
-                        let side_display = prepare(&snap.side_frame);
-                        controls.add_stat("display", t1);
+                        // The snapshot shows its pair's frames, prepared for display by
+                        // the capture thread; a frame of another size is prepared here.
+                        let [front_display, side_display] = [
+                            (&snap.front_frame, display[0].clone()),
+                            (&snap.side_frame, display[1].clone()),
+                        ]
+                        .map(|(frame, ready)| {
+                            let f = frame.as_ref()?;
+                            match ready {
+                                Some(d) if d.frame_size == [f.width(), f.height()] => Some(d),
+                                _ => Some(prepare_display(&mut downscaler, f, &controls)),
+                            }
+                        });
                         snapshots.put(ScreenSnapshot {
                             snap,
                             front_display,
@@ -215,6 +218,36 @@ impl Runner {
     pub fn dropped_pairs(&self) -> u64 {
         self.pairs.dropped()
     }
+}
+
+/// A pair as handed from the capture thread to the process thread, with its frames
+/// prepared for display (front, side).
+struct SourcePair {
+    pair: FramePair,
+    display: [Option<Arc<DisplayImage>>; 2],
+}
+
+/// `frame` box-filtered to the size of its view on screen (see [`display_factor`]).
+fn prepare_display(
+    downscaler: &mut Downscaler,
+    frame: &image::RgbImage,
+    controls: &Controls,
+) -> Arc<DisplayImage> {
+    let target = controls.view_px.lock().ok().and_then(|v| *v);
+    let factor = display_factor(frame.width(), frame.height(), target);
+    downscaler.prepare(frame, factor)
+}
+
+/// Both frames of `pair` prepared for display.
+fn display_pair(
+    downscaler: &mut Downscaler,
+    pair: &FramePair,
+    controls: &Controls,
+) -> [Option<Arc<DisplayImage>>; 2] {
+    let t0 = Instant::now();
+    let d = [&pair.front, &pair.side].map(|f| Some(prepare_display(downscaler, f, controls)));
+    controls.add_stat("display", t0);
+    d
 }
 
 /// What the capture thread does with one result of the source.
@@ -278,12 +311,13 @@ fn capture_loop(
     source: &mut dyn FrameSource,
     fps: Option<f64>,
     controls: &Controls,
-    pairs: &LatestSlot<FramePair>,
+    pairs: &LatestSlot<SourcePair>,
 ) {
     let period = fps.map(|f| Duration::from_secs_f64(1.0 / f));
     let mut next_due = Instant::now();
-    // The pair read ahead of its time (paced sources only).
-    let mut held: Option<FramePair> = None;
+    let mut downscaler = Downscaler::default();
+    // The pair read ahead of its time, prepared for display (paced sources only).
+    let mut held: Option<SourcePair> = None;
     while !controls.stop.load(Ordering::Relaxed) {
         if controls.paused.load(Ordering::Relaxed) {
             let stepped = controls
@@ -297,10 +331,10 @@ fn capture_loop(
                 continue;
             }
         }
-        let pair = match held.take() {
-            Some(p) => p,
+        let (pair, display) = match held.take() {
+            Some(h) => (h.pair, Some(h.display)),
             None => match read_pair(source, controls) {
-                Read::Pair(p) => p,
+                Read::Pair(p) => (p, None),
                 Read::Retry => continue,
                 Read::Stop => break,
             },
@@ -327,12 +361,19 @@ fn capture_loop(
             s.pairs += 1;
             s.last_index = Some(pair.index);
         });
-        pairs.put(pair);
-        // Read the next pair now, while the station works on this one; it waits for
-        // its time above. Not while paused: a step then reads its pair itself.
+        // A pair read just now (a camera's) is prepared for display after its arrival
+        // (that time counts in the latency); one read ahead was prepared while held.
+        let display = display.unwrap_or_else(|| display_pair(&mut downscaler, &pair, controls));
+        pairs.put(SourcePair { pair, display });
+        // Read the next pair now, while the station works on this one, and prepare it
+        // for display; it waits for its time above. Not while paused: a step then
+        // reads its pair itself.
         if period.is_some() && !controls.paused.load(Ordering::Relaxed) {
             match read_pair(source, controls) {
-                Read::Pair(p) => held = Some(p),
+                Read::Pair(pair) => {
+                    let display = display_pair(&mut downscaler, &pair, controls);
+                    held = Some(SourcePair { pair, display });
+                }
                 Read::Retry => {}
                 Read::Stop => break,
             }
