@@ -738,7 +738,9 @@ impl StationApp {
                 .show(ui, |ui| {
                     for m in &measurements {
                         ui.label(pretty_name(&m.name));
-                        ui.label(RichText::new(format!("{:.1} mm", m.value_mm)).monospace());
+                        fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
+                            ui.label(RichText::new(format!("{:.1} mm", m.value_mm)).monospace());
+                        });
                         stability_indicator(ui, m.stability_mm);
                         ui.end_row();
                     }
@@ -760,8 +762,13 @@ impl StationApp {
                     ui.end_row();
                     for (stage, latest, sum) in &self.timings_table {
                         ui.label(stage);
-                        ui.label(latest.map(|ms| format!("{ms:.2} ms")).unwrap_or_default());
-                        ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
+                        // Fixed widths: see VALUE_CELL_WIDTH.
+                        fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
+                            ui.label(latest.map(|ms| format!("{ms:.2} ms")).unwrap_or_default());
+                        });
+                        fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
+                            ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
+                        });
                         ui.end_row();
                     }
                 });
@@ -1450,11 +1457,32 @@ fn stability_indicator(ui: &mut egui::Ui, spread_mm: f64) {
     } else {
         (Color32::from_rgb(230, 80, 60), "moving")
     };
-    ui.horizontal(|ui| {
+    fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
         let (r, _) = ui.allocate_exact_size(Vec2::splat(10.0), egui::Sense::hover());
         ui.painter().circle_filled(r.center(), 5.0, colour);
         ui.label(RichText::new(format!("±{spread_mm:.1} {word}")).small());
     });
+}
+
+/// Widths of the measurement grid's value and stability cells (points): wide enough for
+/// any value, and fixed, because a grid whose column widths change asks egui for one
+/// more frame to lay itself out again (a whole extra frame of software rendering,
+/// whenever a value gains a digit or a word changes).
+const VALUE_CELL_WIDTH: f32 = 96.0;
+const STABILITY_CELL_WIDTH: f32 = 130.0;
+
+/// A grid cell exactly `width` points wide (unless its content is wider), laid out left
+/// to right.
+fn fixed_cell(ui: &mut egui::Ui, width: f32, content: impl FnOnce(&mut egui::Ui)) {
+    let height = ui.spacing().interact_size.y;
+    ui.allocate_ui_with_layout(
+        Vec2::new(width, height),
+        egui::Layout::left_to_right(egui::Align::Center),
+        |ui| {
+            ui.set_min_width(width);
+            content(ui);
+        },
+    );
 }
 
 /// Puts a new display image into `slot` (uploaded by the paint callback once).
