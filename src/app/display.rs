@@ -1,4 +1,4 @@
-//! Camera frames prepared for the screen, once per shown frame, on the `process` thread
+//! Camera frames prepared for the screen, once per frame pair, on the `capture` thread
 //! (not on the screen's): box-filtered by an integer factor down to about the size of
 //! the view on screen and written as RGBA8 (sRGB bytes as they came from the camera),
 //! ready for `wgpu::Queue::write_texture`.
@@ -13,9 +13,10 @@ use std::sync::Arc;
 /// Longest side of a camera frame as prepared for display (pixels).
 pub const DISPLAY_MAX_PX: u32 = 640;
 
-/// Display images kept for reuse; one per view in flight on each side (the screen's
-/// current one, the next one in the hand-over slot, the one being written) fits.
-const POOL_SIZE: usize = 8;
+/// Display images kept for reuse: enough for both views of every pair in flight (read
+/// ahead, in the pair slot, being processed, in the snapshot slot, on screen), plus
+/// the one being written.
+const POOL_SIZE: usize = 12;
 
 /// Bits of the fixed-point reciprocal that replaces the division of a block sum by
 /// the block's pixel count. Exact (same result as integer division) for sums of up to

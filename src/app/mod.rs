@@ -26,12 +26,13 @@ pub mod record;
 pub mod runner;
 pub mod session;
 pub mod stats;
+pub mod trace;
 
 pub use live::{run_live_cli, LiveArgs};
 
 use crate::camera::StationCalibration;
 use crate::pipeline::{FitSnapshot, FrameProcessor, FrameSource, MeasurementValue, ViewOverlay};
-use avatar3d::{AvatarCallback, AvatarResources, OrbitCamera, ViewPreset};
+use avatar3d::{AvatarCallback, AvatarJob, AvatarRenderer, OrbitCamera, ViewPreset};
 use calib_wizard::{CalibrationWizard, WizardAction, WizardSettings, WizardStep, WizardView};
 use egui::{Color32, Pos2, Rect, RichText, Stroke, Vec2};
 use flow::{FlowAction, FlowConfig, FlowInput, FlowState, KioskFlow};
@@ -142,16 +143,12 @@ pub fn run(
             rs.renderer
                 .write()
                 .callback_resources
-                .insert(AvatarResources::new(&rs.device, rs.target_format));
-            rs.renderer
-                .write()
-                .callback_resources
                 .insert(frame_view::FrameViewResources::new(
                     &rs.device,
                     rs.target_format,
                 ));
             let ctx = cc.egui_ctx.clone();
-            let app = StationApp::new(
+            let mut app = StationApp::new(
                 source,
                 processor,
                 opts,
@@ -161,6 +158,20 @@ pub fn run(
                 Box::new(move || ctx.request_repaint_after(SNAPSHOT_REPAINT_DELAY)),
                 summary,
             )?;
+            let ctx = cc.egui_ctx.clone();
+            app.avatar = Some(AvatarRenderer::start(
+                rs.device.clone(),
+                rs.queue.clone(),
+                rs.target_format,
+                app.clock.clone(),
+                // A new picture is shown by the next snapshot's frame; this one is
+                // painted only when none comes sooner (see AVATAR_FALLBACK_S).
+                Box::new(move || {
+                    ctx.request_repaint_after(std::time::Duration::from_secs_f64(
+                        AVATAR_PICTURE_REPAINT_S,
+                    ))
+                }),
+            )?);
             Ok(Box::new(app))
         }),
     )
@@ -390,6 +401,10 @@ struct StationApp {
     shown_avatar: Option<Arc<crate::mesh::TriMesh>>,
     avatar_shown_s: f64,
     orbit: OrbitCamera,
+    /// Renders the avatar between frames (set once the window exists).
+    avatar: Option<AvatarRenderer>,
+    /// The picture drawn in the avatar view this frame shows a fitted avatar.
+    avatar_on_screen: bool,
     /// The operator zoomed by hand: stop fitting the avatar into the view.
     user_zoomed: bool,
     ui_meter: RateMeter,
@@ -424,6 +439,8 @@ struct StationApp {
     closing: bool,
     /// Arrival time of the pair behind the snapshot taken this frame (latency figure).
     pending_arrival: Option<Instant>,
+    /// Snapshots published by the process thread when the slot was last looked at.
+    published_seen: u64,
 }
 
 /// Frames an automatic screenshot waits beyond its frame for a fitted avatar.
@@ -433,6 +450,15 @@ const SCREENSHOT_GRACE_FRAMES: u64 = 600;
 /// up to 10 renders a second, and the software renderer is spared a mesh pass per
 /// snapshot.
 pub const AVATAR_PERIOD_S: f64 = 0.1;
+/// How much earlier than [`AVATAR_PERIOD_S`] a new avatar may be taken, so that with
+/// snapshots every 1/30 s it is taken on every third one, not the fourth.
+const AVATAR_PERIOD_SLACK_S: f64 = 0.015;
+/// How long after a new avatar picture is ready a frame is painted for it alone, when
+/// no snapshot's frame came in the meantime (seconds).
+const AVATAR_PICTURE_REPAINT_S: f64 = 0.1;
+/// How long after the avatar is due a frame is painted for it alone, when no snapshot
+/// came in the meantime (paused or ended source). Longer than a source frame interval.
+const AVATAR_FALLBACK_S: f64 = 0.1;
 
 /// Station messages of the current snapshot shown to the operator.
 const MESSAGES_SHOWN: usize = 4;
@@ -473,6 +499,8 @@ impl StationApp {
             shown_avatar: None,
             avatar_shown_s: f64::NEG_INFINITY,
             orbit: OrbitCamera::default(),
+            avatar: None,
+            avatar_on_screen: false,
             user_zoomed: false,
             ui_meter: RateMeter::default(),
             snap_meter: RateMeter::default(),
@@ -502,6 +530,7 @@ impl StationApp {
             summary,
             closing: false,
             pending_arrival: None,
+            published_seen: 0,
         })
     }
 
@@ -519,6 +548,7 @@ impl StationApp {
     /// Takes the newest snapshot, feeds the flow, takes its display images.
     fn poll_snapshot(&mut self) {
         let now = self.now_s();
+        self.published_seen = self.runner.controls.published.load(Ordering::SeqCst);
         if let Some(shown) = self.runner.snapshots.try_take() {
             let runner::ScreenSnapshot {
                 snap,
@@ -526,6 +556,7 @@ impl StationApp {
                 side_display,
             } = shown;
             self.snapshots_shown += 1;
+            trace::ev("snapshot", snap.frame_index);
             self.snap_meter.tick(now);
             self.pipeline_stats.add_all(&snap.timings_ms);
             self.pending_arrival = self.runner.controls.arrival(snap.frame_index);
@@ -707,7 +738,9 @@ impl StationApp {
                 .show(ui, |ui| {
                     for m in &measurements {
                         ui.label(pretty_name(&m.name));
-                        ui.label(RichText::new(format!("{:.1} mm", m.value_mm)).monospace());
+                        fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
+                            ui.label(RichText::new(format!("{:.1} mm", m.value_mm)).monospace());
+                        });
                         stability_indicator(ui, m.stability_mm);
                         ui.end_row();
                     }
@@ -729,8 +762,13 @@ impl StationApp {
                     ui.end_row();
                     for (stage, latest, sum) in &self.timings_table {
                         ui.label(stage);
-                        ui.label(latest.map(|ms| format!("{ms:.2} ms")).unwrap_or_default());
-                        ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
+                        // Fixed widths: see VALUE_CELL_WIDTH.
+                        fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
+                            ui.label(latest.map(|ms| format!("{ms:.2} ms")).unwrap_or_default());
+                        });
+                        fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
+                            ui.label(format!("{:.2} / {:.2} ms", sum.median, sum.p95));
+                        });
                         ui.end_row();
                     }
                 });
@@ -1196,7 +1234,10 @@ impl StationApp {
             }
         }
         // The newest fit replaces the one on screen at most every AVATAR_PERIOD_S (the
-        // 3-D view is rendered again only then); a cleared avatar goes at once.
+        // 3-D view is rendered again only then), in a frame that shows a new snapshot
+        // anyway; a cleared avatar goes at once. A frame of its own is asked for only
+        // as a fallback, later than the next snapshot would come: each frame costs a
+        // whole window of software rendering and presenting.
         let latest = self.current.as_ref().and_then(|s| s.avatar.clone());
         let changed = match (&latest, &self.shown_avatar) {
             (Some(a), Some(b)) => !Arc::ptr_eq(a, b),
@@ -1204,7 +1245,8 @@ impl StationApp {
             _ => true,
         };
         let now = self.now_s();
-        let due = now - self.avatar_shown_s >= AVATAR_PERIOD_S;
+        let since = now - self.avatar_shown_s;
+        let due = since >= AVATAR_PERIOD_S - AVATAR_PERIOD_SLACK_S;
         let take = changed && (due || latest.is_none() || self.shown_avatar.is_none());
         if take {
             self.shown_avatar = latest;
@@ -1213,7 +1255,7 @@ impl StationApp {
         } else if changed {
             ui.ctx()
                 .request_repaint_after(std::time::Duration::from_secs_f64(
-                    (AVATAR_PERIOD_S - (now - self.avatar_shown_s)).max(0.0),
+                    (AVATAR_PERIOD_S - since).max(0.0) + AVATAR_FALLBACK_S,
                 ));
         }
         let mesh = self.shown_avatar.clone();
@@ -1236,16 +1278,31 @@ impl StationApp {
         let body_ndc = mesh
             .as_deref()
             .and_then(|m| avatar3d::ndc_bounds(m, &self.orbit, aspect));
-        painter.add(eframe::egui_wgpu::Callback::new_paint_callback(
-            avatar_rect,
-            AvatarCallback {
-                mesh,
-                generation: self.avatar_generation,
-                camera: self.orbit,
-                size_points: [avatar_rect.width(), avatar_rect.height()],
-                body_ndc,
-            },
-        ));
+        let ppp = ui.ctx().pixels_per_point();
+        let job = AvatarJob {
+            mesh,
+            generation: self.avatar_generation,
+            camera: self.orbit,
+            size_px: [
+                (avatar_rect.width() * ppp).round().max(1.0) as u32,
+                (avatar_rect.height() * ppp).round().max(1.0) as u32,
+            ],
+            body_ndc,
+        };
+        let presented = self.clock.frames();
+        self.avatar_on_screen = false;
+        if let Some(r) = self.avatar.as_mut() {
+            r.request(job, presented);
+            // The newest finished picture (it may lag the request by a frame); none
+            // at all once the avatar has been cleared.
+            if let Some(picture) = r.picture().filter(|p| p.has_mesh && has_mesh) {
+                self.avatar_on_screen = true;
+                painter.add(eframe::egui_wgpu::Callback::new_paint_callback(
+                    avatar_rect,
+                    AvatarCallback { picture },
+                ));
+            }
+        }
         self.layout.avatar = Some(avatar_rect);
         if !has_mesh {
             painter.text(
@@ -1281,6 +1338,7 @@ impl StationApp {
 impl eframe::App for StationApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         let t0 = Instant::now();
+        trace::ev("frame_start", self.frames);
         let ctx = ui.ctx().clone();
         if ctx.input(|i| i.viewport().close_requested()) {
             self.closing = true;
@@ -1313,6 +1371,7 @@ impl eframe::App for StationApp {
         egui::CentralPanel::no_frame().show(ui, |ui| self.views(ui));
 
         self.ui_stats.add("ui", t0.elapsed().as_secs_f64() * 1e3);
+        trace::ev("ui_done", self.frames);
         // The end of this frame (its present) is noted when egui-wgpu drops this
         // callback; a 1-point rectangle in the window's corner, so it is not culled.
         let probe = self.clock.probe(t0, self.pending_arrival.take());
@@ -1324,7 +1383,7 @@ impl eframe::App for StationApp {
         // Screenshot and exit handling (CLI --screenshot / --exit-after-frames): the
         // automatic screenshot is due after N frames and waits (at most
         // SCREENSHOT_GRACE_FRAMES more) for a frame that shows a fitted avatar.
-        let has_avatar = self.current.as_ref().is_some_and(|s| s.avatar.is_some());
+        let has_avatar = self.avatar_on_screen;
         if let (Some(n), Some(p)) = (self.screenshot_at, self.screenshot_path.clone()) {
             let idle = matches!(self.screenshot, ScreenshotState::None);
             if idle
@@ -1364,6 +1423,13 @@ impl eframe::App for StationApp {
             IDLE_REPAINT_MS
         };
         ctx.request_repaint_after(std::time::Duration::from_millis(wake_ms));
+        // The next snapshot wakes the screen; one published since the slot was looked at
+        // (it found the flag still clear) is picked up by a frame asked for here.
+        let c = &self.runner.controls;
+        c.wake_wanted.store(true, Ordering::SeqCst);
+        if c.published.load(Ordering::SeqCst) != self.published_seen {
+            ctx.request_repaint_after(SNAPSHOT_REPAINT_DELAY);
+        }
     }
 
     fn clear_color(&self, _visuals: &egui::Visuals) -> [f32; 4] {
@@ -1372,6 +1438,7 @@ impl eframe::App for StationApp {
     }
 
     fn on_exit(&mut self) {
+        trace::dump();
         self.write_summary();
         self.stop_recording();
     }
@@ -1390,11 +1457,32 @@ fn stability_indicator(ui: &mut egui::Ui, spread_mm: f64) {
     } else {
         (Color32::from_rgb(230, 80, 60), "moving")
     };
-    ui.horizontal(|ui| {
+    fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
         let (r, _) = ui.allocate_exact_size(Vec2::splat(10.0), egui::Sense::hover());
         ui.painter().circle_filled(r.center(), 5.0, colour);
         ui.label(RichText::new(format!("±{spread_mm:.1} {word}")).small());
     });
+}
+
+/// Widths of the measurement grid's value and stability cells (points): wide enough for
+/// any value, and fixed, because a grid whose column widths change asks egui for one
+/// more frame to lay itself out again (a whole extra frame of software rendering,
+/// whenever a value gains a digit or a word changes).
+const VALUE_CELL_WIDTH: f32 = 96.0;
+const STABILITY_CELL_WIDTH: f32 = 130.0;
+
+/// A grid cell exactly `width` points wide (unless its content is wider), laid out left
+/// to right.
+fn fixed_cell(ui: &mut egui::Ui, width: f32, content: impl FnOnce(&mut egui::Ui)) {
+    let height = ui.spacing().interact_size.y;
+    ui.allocate_ui_with_layout(
+        Vec2::new(width, height),
+        egui::Layout::left_to_right(egui::Align::Center),
+        |ui| {
+            ui.set_min_width(width);
+            content(ui);
+        },
+    );
 }
 
 /// Puts a new display image into `slot` (uploaded by the paint callback once).
@@ -1497,12 +1585,13 @@ fn draw_view(
         if operator {
             for (k, (_, pts)) in o.parts.iter().enumerate() {
                 let c = PART_COLOURS[k % PART_COLOURS.len()];
-                for p in pts {
-                    painter.circle_filled(to_screen(*p), 2.0, c);
+                // Dots closer than a segment overlap anyway.
+                for p in screen_polyline(pts.iter().map(|p| to_screen(*p))) {
+                    painter.circle_filled(p, 2.0, c);
                 }
             }
             if o.avatar_outline.len() > 2 {
-                let pts: Vec<Pos2> = o.avatar_outline.iter().map(|p| to_screen(*p)).collect();
+                let pts = screen_polyline(o.avatar_outline.iter().map(|p| to_screen(*p)));
                 painter.add(egui::Shape::closed_line(
                     pts,
                     Stroke::new(1.0, AVATAR_OUTLINE_COLOUR),
@@ -1510,7 +1599,7 @@ fn draw_view(
             }
         }
         if o.contour.len() > 2 {
-            let pts: Vec<Pos2> = o.contour.iter().map(|p| to_screen(*p)).collect();
+            let pts = screen_polyline(o.contour.iter().map(|p| to_screen(*p)));
             painter.add(egui::Shape::closed_line(
                 pts,
                 Stroke::new(2.0, CONTOUR_COLOUR),
@@ -1547,6 +1636,25 @@ fn draw_view(
         Color32::WHITE,
     );
     Some(rect)
+}
+
+/// Shortest segment of an outline as drawn (points). The station's contours have a
+/// point every pixel or two of the camera frame, several per screen pixel once the frame
+/// is scaled into its view; every segment is a few triangles for the software
+/// rasteriser, so points closer than this to the last one kept are left out.
+const OUTLINE_MIN_SEGMENT: f32 = 2.5;
+
+/// The points of a closed outline on screen, without those closer than
+/// [`OUTLINE_MIN_SEGMENT`] to the previous point kept.
+fn screen_polyline(points: impl Iterator<Item = Pos2>) -> Vec<Pos2> {
+    let mut out: Vec<Pos2> = Vec::new();
+    for p in points {
+        match out.last() {
+            Some(last) if last.distance(p) < OUTLINE_MIN_SEGMENT => {}
+            _ => out.push(p),
+        }
+    }
+    out
 }
 
 /// Writes the screenshot PNG and `<stem>.layout.json` with the pixel rects of the views.
@@ -1695,6 +1803,17 @@ mod tests {
         }
         let now = 89.0 / 30.0;
         assert!((m.rate(now) - 31.0).abs() <= 1.0, "{}", m.rate(now));
+    }
+
+    #[test]
+    fn outlines_keep_points_a_segment_apart() {
+        let pts: Vec<Pos2> = (0..100).map(|k| Pos2::new(k as f32 * 0.5, 0.0)).collect();
+        let kept = screen_polyline(pts.into_iter());
+        assert_eq!(kept.first(), Some(&Pos2::new(0.0, 0.0)));
+        assert_eq!(kept.len(), 20);
+        assert!(kept
+            .windows(2)
+            .all(|w| w[0].distance(w[1]) >= OUTLINE_MIN_SEGMENT));
     }
 
     #[test]

@@ -3,9 +3,10 @@
 //! recorder), a newest-wins [`LatestSlot`] hands them to `process` (the
 //! [`FrameProcessor`]), whose [`FitSnapshot`]s go to another slot the screen reads.
 //!
-//! `process` also prepares the camera frames of each snapshot for display
-//! ([`super::display`]: box-filtered to the size of the view on screen, RGBA), so the
-//! screen's own thread only uploads them.
+//! `capture` also prepares the camera frames of each pair for display
+//! ([`super::display`]: box-filtered to the size of the view on screen, RGBA), for a
+//! paced source while the pair waits for its time, so that neither the station's
+//! processing nor the screen's own thread waits for it (the screen only uploads them).
 //!
 //! The screen never waits for either thread; a slow processor drops frames (counted),
 //! a disconnected camera is shown and retried; a source that ends leaves the last
@@ -61,6 +62,13 @@ pub struct Controls {
     /// Size of a camera view on screen (pixels), set by the screen: the frames are
     /// prepared for display at about that size.
     pub view_px: Mutex<Option<[f32; 2]>>,
+    /// Snapshots put into the screen's slot so far.
+    pub published: AtomicU64,
+    /// The screen will not look at the snapshot slot again unless woken: the next
+    /// snapshot calls `notify` (and clears this). Set by the screen at the end of each
+    /// frame, after which it checks `published` itself; a snapshot that the screen
+    /// takes in the frame it was put during therefore asks for no second frame.
+    pub wake_wanted: AtomicBool,
     /// When the most recent pairs left the source (index, time), for the screen's
     /// arrival-to-screen latency.
     arrivals: Mutex<std::collections::VecDeque<(u64, Instant)>>,
@@ -114,19 +122,25 @@ pub struct ScreenSnapshot {
 pub struct Runner {
     pub controls: Arc<Controls>,
     pub snapshots: Arc<LatestSlot<ScreenSnapshot>>,
-    pairs: Arc<LatestSlot<FramePair>>,
+    pairs: Arc<LatestSlot<SourcePair>>,
     process: Option<JoinHandle<()>>,
 }
 
 impl Runner {
-    /// Starts both threads; `notify` is called after each new snapshot (repaint).
+    /// Starts both threads; `notify` is called after a new snapshot when the screen
+    /// wants waking (see [`Controls::wake_wanted`]; always, if the screen never sets
+    /// it, for the first snapshot only).
     pub fn start(
         mut source: Box<dyn FrameSource>,
         mut processor: Box<dyn FrameProcessor>,
         notify: Box<dyn Fn() + Send>,
     ) -> std::io::Result<Self> {
-        let controls = Arc::new(Controls::default());
-        let pairs = Arc::new(LatestSlot::<FramePair>::new());
+        let controls = Arc::new(Controls {
+            // Nothing is on screen yet: the first snapshot wakes the screen.
+            wake_wanted: AtomicBool::new(true),
+            ..Controls::default()
+        });
+        let pairs = Arc::new(LatestSlot::<SourcePair>::new());
         let snapshots = Arc::new(LatestSlot::<ScreenSnapshot>::new());
         let fps = source.fps().filter(|f| f.is_finite() && *f > 0.0);
         {
@@ -135,76 +149,7 @@ impl Runner {
             // Detached: a camera read may block; the thread ends at its next iteration.
             std::thread::Builder::new()
                 .name("capture".into())
-                .spawn(move || {
-                    let period = fps.map(|f| Duration::from_secs_f64(1.0 / f));
-                    let mut next_due = Instant::now();
-                    while !controls.stop.load(Ordering::Relaxed) {
-                        if controls.paused.load(Ordering::Relaxed) {
-                            let stepped = controls
-                                .steps
-                                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |s| {
-                                    s.checked_sub(1)
-                                })
-                                .is_ok();
-                            if !stepped {
-                                controls.pause_polls.fetch_add(1, Ordering::SeqCst);
-                                std::thread::sleep(PAUSED_POLL);
-                                next_due = Instant::now();
-                                continue;
-                            }
-                        }
-                        let t0 = Instant::now();
-                        match source.next_pair() {
-                            Ok(Some(pair)) => {
-                                controls.add_stat("source", t0);
-                                controls.note_arrival(pair.index);
-                                if let Ok(r) = controls.recorder.lock() {
-                                    if let Some(r) = r.as_ref() {
-                                        r.push(&pair);
-                                    }
-                                }
-                                controls.with_status(|s| {
-                                    s.problem = None;
-                                    s.pairs += 1;
-                                    s.last_index = Some(pair.index);
-                                });
-                                pairs.put(pair);
-                            }
-                            Ok(None) => {
-                                controls.with_status(|s| s.ended = true);
-                                break;
-                            }
-                            Err(SourceError::Skipped(m)) => controls
-                                .with_status(|s| s.problem = Some(format!("frame skipped: {m}"))),
-                            Err(SourceError::Disconnected(m)) => {
-                                controls.with_status(|s| {
-                                    s.problem = Some(format!(
-                                        "camera disconnected: {m} (waiting for it to come back)"
-                                    ))
-                                });
-                                std::thread::sleep(RECONNECT_POLL);
-                            }
-                            Err(SourceError::Fatal(m)) => {
-                                controls.with_status(|s| {
-                                    s.problem = Some(m);
-                                    s.failed = true;
-                                });
-                                break;
-                            }
-                        }
-                        if let Some(p) = period {
-                            next_due += p;
-                            let now = Instant::now();
-                            if next_due > now {
-                                std::thread::sleep(next_due - now);
-                            } else if now - next_due > p * 4 {
-                                // Far behind (a slow source): do not try to catch up.
-                                next_due = now;
-                            }
-                        }
-                    }
-                    pairs.close();
-                })?;
+                .spawn(move || capture_loop(source.as_mut(), fps, &controls, &pairs))?;
         }
         let process = {
             let controls = controls.clone();
@@ -214,7 +159,7 @@ impl Runner {
                 .name("process".into())
                 .spawn(move || {
                     let mut downscaler = Downscaler::default();
-                    while let Some(pair) = pairs.take() {
+                    while let Some(SourcePair { pair, display }) = pairs.take() {
                         if controls.stop.load(Ordering::Relaxed) {
                             break;
                         }
@@ -230,25 +175,33 @@ impl Runner {
                             processor.reset_subject();
                         }
                         let t0 = Instant::now();
+                        super::trace::ev("process_start", pair.index);
                         let snap = processor.process(&pair);
+                        super::trace::ev("process_end", pair.index);
                         controls.add_stat("process", t0);
-                        let t1 = Instant::now();
-                        let target = controls.view_px.lock().ok().and_then(|v| *v);
-                        let mut prepare = |f: &Option<Arc<image::RgbImage>>| {
-                            f.as_ref().map(|f| {
-                                let factor = display_factor(f.width(), f.height(), target);
-                                downscaler.prepare(f, factor)
-                            })
-                        };
-                        let front_display = prepare(&snap.front_frame);
-                        let side_display = prepare(&snap.side_frame);
-                        controls.add_stat("display", t1);
+                        // The snapshot shows its pair's frames, prepared for display by
+                        // the capture thread; a frame of another size is prepared here.
+                        let [front_display, side_display] = [
+                            (&snap.front_frame, display[0].clone()),
+                            (&snap.side_frame, display[1].clone()),
+                        ]
+                        .map(|(frame, ready)| {
+                            let f = frame.as_ref()?;
+                            match ready {
+                                Some(d) if d.frame_size == [f.width(), f.height()] => Some(d),
+                                _ => Some(prepare_display(&mut downscaler, f, &controls)),
+                            }
+                        });
                         snapshots.put(ScreenSnapshot {
                             snap,
                             front_display,
                             side_display,
                         });
-                        notify();
+                        let n = controls.published.fetch_add(1, Ordering::SeqCst);
+                        super::trace::ev("published", n + 1);
+                        if controls.wake_wanted.swap(false, Ordering::SeqCst) {
+                            notify();
+                        }
                     }
                     snapshots.close();
                 })?
@@ -265,6 +218,168 @@ impl Runner {
     pub fn dropped_pairs(&self) -> u64 {
         self.pairs.dropped()
     }
+}
+
+/// A pair as handed from the capture thread to the process thread, with its frames
+/// prepared for display (front, side).
+struct SourcePair {
+    pair: FramePair,
+    display: [Option<Arc<DisplayImage>>; 2],
+}
+
+/// `frame` box-filtered to the size of its view on screen (see [`display_factor`]).
+fn prepare_display(
+    downscaler: &mut Downscaler,
+    frame: &image::RgbImage,
+    controls: &Controls,
+) -> Arc<DisplayImage> {
+    let target = controls.view_px.lock().ok().and_then(|v| *v);
+    let factor = display_factor(frame.width(), frame.height(), target);
+    downscaler.prepare(frame, factor)
+}
+
+/// Both frames of `pair` prepared for display.
+fn display_pair(
+    downscaler: &mut Downscaler,
+    pair: &FramePair,
+    controls: &Controls,
+) -> [Option<Arc<DisplayImage>>; 2] {
+    let t0 = Instant::now();
+    let d = [&pair.front, &pair.side].map(|f| Some(prepare_display(downscaler, f, controls)));
+    controls.add_stat("display", t0);
+    d
+}
+
+/// What the capture thread does with one result of the source.
+enum Read {
+    /// A pair to hand on (at its time, for a paced source).
+    Pair(FramePair),
+    /// Nothing this time (a skipped frame, a disconnected camera): try again.
+    Retry,
+    /// The source has ended or failed for good.
+    Stop,
+}
+
+/// Reads the source once and reports what happened in the shared status.
+fn read_pair(source: &mut dyn FrameSource, controls: &Controls) -> Read {
+    let t0 = Instant::now();
+    super::trace::ev("read", 0);
+    match source.next_pair() {
+        Ok(Some(pair)) => {
+            controls.add_stat("source", t0);
+            Read::Pair(pair)
+        }
+        Ok(None) => {
+            controls.with_status(|s| s.ended = true);
+            Read::Stop
+        }
+        Err(SourceError::Skipped(m)) => {
+            controls.with_status(|s| s.problem = Some(format!("frame skipped: {m}")));
+            Read::Retry
+        }
+        Err(SourceError::Disconnected(m)) => {
+            controls.with_status(|s| {
+                s.problem = Some(format!(
+                    "camera disconnected: {m} (waiting for it to come back)"
+                ))
+            });
+            std::thread::sleep(RECONNECT_POLL);
+            Read::Retry
+        }
+        Err(SourceError::Fatal(m)) => {
+            controls.with_status(|s| {
+                s.problem = Some(m);
+                s.failed = true;
+            });
+            Read::Stop
+        }
+    }
+}
+
+/// The capture thread: hands the source's pairs to `pairs` until the source ends or
+/// the runner stops.
+///
+/// A source with a frame rate (a recording, the demo) is paced to it like a camera:
+/// the next pair is read (decoded) as soon as the previous one has been handed on and
+/// is then held until its due time, so that every pair leaves the source on the
+/// recording's clock however long its decoding took, and the decoding runs while the
+/// station processes the previous pair rather than while the screen draws it. A pair
+/// is never held past its due time (one that comes late goes at once) and at most one
+/// is held: nothing stale queues up. A source without a frame rate (live cameras)
+/// paces itself and each pair goes on as soon as it is read.
+fn capture_loop(
+    source: &mut dyn FrameSource,
+    fps: Option<f64>,
+    controls: &Controls,
+    pairs: &LatestSlot<SourcePair>,
+) {
+    let period = fps.map(|f| Duration::from_secs_f64(1.0 / f));
+    let mut next_due = Instant::now();
+    let mut downscaler = Downscaler::default();
+    // The pair read ahead of its time, prepared for display (paced sources only).
+    let mut held: Option<SourcePair> = None;
+    while !controls.stop.load(Ordering::Relaxed) {
+        if controls.paused.load(Ordering::Relaxed) {
+            let stepped = controls
+                .steps
+                .fetch_update(Ordering::Relaxed, Ordering::Relaxed, |s| s.checked_sub(1))
+                .is_ok();
+            if !stepped {
+                controls.pause_polls.fetch_add(1, Ordering::SeqCst);
+                std::thread::sleep(PAUSED_POLL);
+                next_due = Instant::now();
+                continue;
+            }
+        }
+        let (pair, display) = match held.take() {
+            Some(h) => (h.pair, Some(h.display)),
+            None => match read_pair(source, controls) {
+                Read::Pair(p) => (p, None),
+                Read::Retry => continue,
+                Read::Stop => break,
+            },
+        };
+        if let Some(p) = period {
+            let now = Instant::now();
+            if next_due > now {
+                std::thread::sleep(next_due - now);
+            } else if now - next_due > p * 4 {
+                // Far behind (a slow source): do not try to catch up.
+                next_due = now;
+            }
+            next_due += p;
+        }
+        controls.note_arrival(pair.index);
+        super::trace::ev("arrival", pair.index);
+        if let Ok(r) = controls.recorder.lock() {
+            if let Some(r) = r.as_ref() {
+                r.push(&pair);
+            }
+        }
+        controls.with_status(|s| {
+            s.problem = None;
+            s.pairs += 1;
+            s.last_index = Some(pair.index);
+        });
+        // A pair read just now (a camera's) is prepared for display after its arrival
+        // (that time counts in the latency); one read ahead was prepared while held.
+        let display = display.unwrap_or_else(|| display_pair(&mut downscaler, &pair, controls));
+        pairs.put(SourcePair { pair, display });
+        // Read the next pair now, while the station works on this one, and prepare it
+        // for display; it waits for its time above. Not while paused: a step then
+        // reads its pair itself.
+        if period.is_some() && !controls.paused.load(Ordering::Relaxed) {
+            match read_pair(source, controls) {
+                Read::Pair(pair) => {
+                    let display = display_pair(&mut downscaler, &pair, controls);
+                    held = Some(SourcePair { pair, display });
+                }
+                Read::Retry => {}
+                Read::Stop => break,
+            }
+        }
+    }
+    pairs.close();
 }
 
 impl Drop for Runner {

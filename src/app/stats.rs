@@ -218,6 +218,7 @@ pub struct FrameEndProbe {
 
 impl Drop for FrameEndProbe {
     fn drop(&mut self) {
+        super::trace::ev("present", 0);
         record_end(&self.state, self.started, self.arrival, Instant::now());
     }
 }
