@@ -545,6 +545,14 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
             REFIT_NUDGE_M * 1e3
         );
     }
+    // Where a chord step's time goes (after the sequence: this resets the residual
+    // remembered at its result).
+    if let Some((residual_ms, solve_ms)) = fast.step_part_times(&warm_pos, repeats) {
+        println!(
+            "fast step parts:     {:8.2} ms residual pass (every free vertex decoded), {:.2} ms block-LU solve, medians of {repeats}",
+            residual_ms, solve_ms
+        );
+    }
     // The frozen-offset variant (scalar factor, Anderson mixing) for comparison.
     {
         let frozen_opts = DecodeOptions {
