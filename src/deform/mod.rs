@@ -58,7 +58,8 @@
 //! (Anderson acceleration, `anderson.rs`); that converges in 12-15 steps on the body when
 //! hands, feet and head are held (method.md: they move rigidly) and in 45-70 when they
 //! are free (the fingers dominate). The coupled system sees that feedback in its
-//! Jacobian; its chord steps are mixed the same way (a no-op when they converge in two).
+//! Jacobian; its chord steps from the second on are mixed the same way (nothing to mix
+//! when a solve converges with the predictor and one chord step, the usual refit).
 //! Cost of the coupled system: its block LU holds 1.66 M values on the body (the normal
 //! equations' Cholesky factor 2.9 M, the scalar one 0.27 M); a solve with it (f32
 //! values) took about 1.3 ms, a residual pass about 0.8 ms: a step costs about 2 ms.

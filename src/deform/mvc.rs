@@ -48,6 +48,8 @@ pub struct MvcDeformer {
     /// Coupled system: largest `|v - v_mv|` at the start of the last step of the current
     /// solve (NaN when that step did not evaluate it).
     last_step_residual: f64,
+    /// Coupled system: chord steps taken so far in the current solve.
+    chord_steps: usize,
     /// The scalar engine has been factored for the current fixed set.
     engine_factored: bool,
     /// Rest positions (the first linearisation point) and mean edge length, metres.
@@ -143,6 +145,7 @@ impl MvcDeformer {
             coupled: None,
             coupled_active: false,
             last_step_residual: f64::NAN,
+            chord_steps: 0,
             engine_factored: false,
             rest: rest.positions.clone(),
             mean_edge_m: rest.mean_edge_length(),
@@ -281,23 +284,19 @@ impl MvcDeformer {
         // with free ones (measured), so they are not kept.
         self.anderson.reset();
         self.last_step_residual = f64::NAN;
+        self.chord_steps = 0;
         let mut first = 0;
         if self.coupled_active && self.opts.max_iterations > 0 {
             // Predictor: the linear response of the current surface to the control moves
-            // (see `CoupledSystem::step`), then chord steps.
+            // (see `CoupledSystem::step`), applied in place, then chord steps.
             if let Some(c) = &mut self.coupled {
                 self.delta.iter_mut().for_each(|d| *d = DVec3::ZERO);
                 for (&v, t) in self.controls.iter().zip(targets) {
                     self.delta[v as usize] = *t - positions[v as usize];
                 }
-                let (moved, start_residual) = c.step(
-                    &self.encoding,
-                    positions,
-                    Some(&self.delta),
-                    &mut self.step_out,
-                );
-                self.last_step_residual = start_residual;
-                positions.copy_from_slice(&self.step_out);
+                self.last_step_residual =
+                    c.solve_step(&self.encoding, positions, Some(&self.delta));
+                let moved = c.apply_step(positions);
                 for (&v, t) in self.controls.iter().zip(targets) {
                     positions[v as usize] = *t;
                 }
@@ -386,9 +385,17 @@ impl MvcDeformer {
     fn gauss_newton_step(&mut self, targets: &[DVec3], positions: &mut [DVec3]) -> f64 {
         if self.coupled_active {
             if let Some(c) = &mut self.coupled {
-                let (plain, start_residual) =
-                    c.step(&self.encoding, positions, None, &mut self.step_out);
-                self.last_step_residual = start_residual;
+                self.last_step_residual = c.solve_step(&self.encoding, positions, None);
+                self.chord_steps += 1;
+                if self.chord_steps == 1 {
+                    // Nothing to mix yet, and usually the last step (a refit converges
+                    // with the predictor and one chord step): applied in place, without
+                    // handing a copy of the mesh to the acceleration. The mixing starts
+                    // with the second chord step.
+                    return c.apply_step(positions);
+                }
+                self.step_out.copy_from_slice(positions);
+                let plain = c.apply_step(&mut self.step_out);
                 if !plain.is_finite() {
                     return plain;
                 }

@@ -305,6 +305,7 @@ impl CoupledSystem {
     /// Returns (step length over free vertices, largest residual `|F_v(x)|`), metres; the
     /// residual is NaN when this step did not evaluate it (a predictor from the result
     /// of a converged solve, see [`CachedResidual::Converged`]).
+    #[cfg(test)]
     pub(crate) fn step(
         &mut self,
         enc: &MeanValueEncoding,
@@ -312,6 +313,28 @@ impl CoupledSystem {
         jump: Option<&[DVec3]>,
         out: &mut [DVec3],
     ) -> (f64, f64) {
+        let fmax = self.solve_step(enc, positions, jump);
+        out.copy_from_slice(positions);
+        if let Some(jump) = jump {
+            for (o, d) in out.iter_mut().zip(jump) {
+                *o += *d;
+            }
+        }
+        (self.apply_step(out), fmax)
+    }
+
+    /// The linear half of [`Self::step`]: evaluates `F` at `positions` (or takes it from
+    /// what is remembered there), adds `J_fixed jump` for a predictor, and solves for the
+    /// step, kept for [`Self::apply_step`] (split so the deformer can apply it in place or
+    /// hand it to its acceleration without copying the mesh). Returns the largest
+    /// residual `|F_v(x)|`, metres (NaN when not evaluated, see [`Self::step`]); a failed
+    /// solve leaves a NaN step.
+    pub(crate) fn solve_step(
+        &mut self,
+        enc: &MeanValueEncoding,
+        positions: &[DVec3],
+        jump: Option<&[DVec3]>,
+    ) -> f64 {
         let mut fmax = 0.0f64;
         let cache = match self.cache {
             CachedResidual::Unknown => CachedResidual::Unknown,
@@ -338,17 +361,8 @@ impl CoupledSystem {
             }
             self.residual[r] = f;
         }
-        out.copy_from_slice(positions);
-        if let Some(jump) = jump {
-            for (o, d) in out.iter_mut().zip(jump) {
-                *o += *d;
-            }
-        }
         if assume_zero {
             fmax = f64::NAN;
-        }
-        if self.free.is_empty() {
-            return (0.0, fmax.sqrt());
         }
         match (self.engine, &mut self.lu, &mut self.normal) {
             (CoupledEngine::BlockLu, Some(lu), _) => {
@@ -364,17 +378,23 @@ impl CoupledSystem {
                 &self.residual,
                 &mut self.delta,
             ),
-            _ => return (f64::NAN, fmax.sqrt()),
+            _ => self.delta.iter_mut().for_each(|d| *d = DVec3::NAN),
         }
+        fmax.sqrt()
+    }
+
+    /// Adds the step of the last [`Self::solve_step`] to the free vertices of
+    /// `positions`; returns its length, metres (NaN propagates).
+    pub(crate) fn apply_step(&self, positions: &mut [DVec3]) -> f64 {
         let mut max_move = 0.0f64;
         for (&v, d) in self.free.iter().zip(&self.delta) {
             let m = d.length_squared();
             if !(m <= max_move) {
                 max_move = m; // also propagates NaN
             }
-            out[v as usize] = positions[v as usize] + *d;
+            positions[v as usize] += *d;
         }
-        (max_move.sqrt(), fmax.sqrt())
+        max_move.sqrt()
     }
 
     /// Largest `|F_v|` over the free vertices at `positions`, metres; remembered for a
