@@ -413,10 +413,11 @@ impl MeanValueEncoding {
             sum += prev.cross(dk);
             prev = dk;
         }
-        if !(sum.length() > REL_EPS * far2 && sum.is_finite()) {
+        let len = sum.length();
+        if !(len > REL_EPS * far2 && sum.is_finite()) {
             return None; // collinear ring: the general path orients its plane
         }
-        let n = sum.normalize();
+        let n = sum / len;
         // Heights h_i = (v_i - l).n and their weighted sum.
         let mut h = [0.0f64; FAST_RING];
         let mut height = 0.0;
