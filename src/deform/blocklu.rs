@@ -27,9 +27,12 @@
 //!    by columns, so the `f32` copies for the solves are stored by rows (`L` rows follow
 //!    the `U` column pattern and vice versa: the pattern is symmetric). Why: the
 //!    column-oriented solve scatters every block product into the solution vector
-//!    (a read-modify-write per block); on the body the gather form solves in about
-//!    0.75 ms (`fitstation bench deform`, "fast step parts", at load 5 on the 2-core
-//!    machine) where the scatter form was measured at about 1.3 ms.
+//!    (a read-modify-write per block). On the body the gather form solves in 0.5 to
+//!    1.3 ms depending on what else runs on the 2-core machine (`fitstation bench
+//!    deform`, "fast step parts", load 2.5 to 6); the scatter form's solve had been
+//!    measured at about 1.3 ms, and with it the warm refit went from 3.6-7.3 ms to
+//!    2.8-3.2 ms in side-by-side runs at load 6 (together with the changes of
+//!    `newton.rs` and `mvc.rs` to the refit's passes).
 //!
 //! Unitless (whatever the matrix holds); indices are the caller's "reduced" indices.
 //! Factor values are stored as `f32` blocks for the solves (half the memory traffic of a
