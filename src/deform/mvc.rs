@@ -443,12 +443,13 @@ impl MvcDeformer {
 
     /// Bench only: times of the two halves of a coupled chord step at `positions`, one
     /// residual pass (all free vertices decoded) and one solve of the factored system,
-    /// milliseconds, medians of `repeats`; None without the coupled system.
+    /// milliseconds, medians of `repeats`, and the blocks the solve reads and the factor
+    /// holds (zero without the block LU); None without the coupled system.
     pub(crate) fn step_part_times(
         &mut self,
         positions: &[DVec3],
         repeats: usize,
-    ) -> Option<(f64, f64)> {
+    ) -> Option<(f64, f64, usize, usize)> {
         let c = self.coupled.as_mut().filter(|_| self.coupled_active)?;
         let mut residual = Vec::with_capacity(repeats);
         let mut solve = Vec::with_capacity(repeats);
@@ -464,7 +465,8 @@ impl MvcDeformer {
             v.sort_by(f64::total_cmp);
             v[v.len() / 2]
         };
-        Some((median(residual), median(solve)))
+        let (read, held) = c.lu_block_counts().unwrap_or((0, 0));
+        Some((median(residual), median(solve), read, held))
     }
 
     /// Forgets the fast decoder's acceleration history (each solve starts afresh anyway;

@@ -177,7 +177,7 @@ impl CoupledSystem {
             }
             adj_ptr.push(adj.len() as u32);
         }
-        let lu = BlockLu::analyse(&adj_ptr, &adj).ok();
+        let lu = BlockLu::analyse(&adj_ptr, &adj, super::blocklu::DROP_REL).ok();
         Ok(CoupledSystem {
             free,
             reduced_of,
@@ -458,6 +458,14 @@ impl CoupledSystem {
             + self.work.len() * 24
             + self.lu.as_ref().map_or(0, |l| l.heap_bytes())
             + self.normal.as_ref().map_or(0, |n| n.heap_bytes())
+    }
+
+    /// Block-LU engine: blocks its solves read and blocks its factor holds.
+    pub(crate) fn lu_block_counts(&self) -> Option<(usize, usize)> {
+        match (self.engine, &self.lu) {
+            (CoupledEngine::BlockLu, Some(lu)) => Some((lu.solve_block_count(), lu.block_count())),
+            _ => None,
+        }
     }
 
     /// Stored scalar values of the factor in use.
