@@ -96,16 +96,17 @@ struct SolveRows {
 }
 
 impl SolveRows {
-    /// Empty rows for an `n x n` block matrix.
-    fn new(n: usize) -> Self {
+    /// Empty rows for an `n x n` block matrix, with room for `nnz` blocks (all of the
+    /// pattern: a refactorisation never allocates).
+    fn new(n: usize, nnz: usize) -> Self {
         SolveRows {
             ptr: vec![0; n + 1],
             cols: if n <= u16::MAX as usize + 1 {
-                Cols::Narrow(Vec::new())
+                Cols::Narrow(Vec::with_capacity(nnz))
             } else {
-                Cols::Wide(Vec::new())
+                Cols::Wide(Vec::with_capacity(nnz))
             },
-            val: Vec::new(),
+            val: Vec::with_capacity(nnz),
         }
     }
 
@@ -296,8 +297,8 @@ impl BlockLu {
             l_to_u,
             diag_scale: vec![0.0; n],
             drop_rel: drop_rel.max(0.0),
-            l_rows: SolveRows::new(n),
-            u_rows: SolveRows::new(n),
+            l_rows: SolveRows::new(n, nnz),
+            u_rows: SolveRows::new(n, nnz),
             diag_inv32: vec![Mat3::ZERO; n],
             work: vec![DMat3::ZERO; n],
             touched: vec![false; n],
