@@ -121,12 +121,17 @@ impl SolveRows {
     }
 
     fn push(&mut self, col: u32, val: &DMat3) {
+        self.push_col(col);
+        self.val.push(val.as_mat3());
+    }
+
+    /// The column of a block whose value is already in place.
+    fn push_col(&mut self, col: u32) {
         match &mut self.cols {
             // `new` chose the narrow type only when every column fits it.
             Cols::Narrow(c) => c.push(col as u16),
             Cols::Wide(c) => c.push(col),
         }
-        self.val.push(val.as_mat3());
     }
 
     fn end_row(&mut self) {
@@ -183,13 +188,15 @@ pub(crate) struct BlockLu {
     l_row: Vec<u32>,
     u_ptr: Vec<u32>,
     u_row: Vec<u32>,
-    /// `f64` values during the factorisation.
+    /// `f64` values of `L` (the factorisation reads the earlier columns). `U` is only
+    /// written, so it goes straight into its `f32` solve rows: that halves the memory a
+    /// factorisation dirties, whose write-back otherwise slows the first solves after a
+    /// re-linearisation (measured: the first refit's block solves took about twice as
+    /// long as in the frames after it).
     l_val: Vec<DMat3>,
-    u_val: Vec<DMat3>,
     /// For each slot `e` of the `U` pattern (column `k`, row `j`), the slot of the `L`
-    /// pattern at the transposed place (column `j`, row `k`), and the inverse map.
+    /// pattern at the transposed place (column `j`, row `k`).
     u_to_l: Vec<u32>,
-    l_to_u: Vec<u32>,
     /// Largest entry of each diagonal block of `U` (the scale its row is dropped against).
     diag_scale: Vec<f64>,
     /// `f32` copies for the solves, by rows, without the negligible blocks (see
@@ -273,13 +280,11 @@ impl BlockLu {
         let mut fill = l_ptr.clone();
         let mut l_row = vec![0u32; u_row.len()];
         let mut u_to_l = vec![0u32; u_row.len()];
-        let mut l_to_u = vec![0u32; u_row.len()];
         for k in 0..n {
             for e in u_ptr[k] as usize..u_ptr[k + 1] as usize {
                 let j = u_row[e] as usize;
                 l_row[fill[j] as usize] = k as u32;
                 u_to_l[e] = fill[j];
-                l_to_u[fill[j] as usize] = e as u32;
                 fill[j] += 1;
             }
         }
@@ -292,9 +297,7 @@ impl BlockLu {
             u_ptr,
             u_row,
             l_val: vec![DMat3::ZERO; nnz],
-            u_val: vec![DMat3::ZERO; nnz],
             u_to_l,
-            l_to_u,
             diag_scale: vec![0.0; n],
             drop_rel: drop_rel.max(0.0),
             l_rows: SolveRows::new(n, nnz),
@@ -335,6 +338,11 @@ impl BlockLu {
     ) -> Result<(), BlockLuError> {
         self.factored = false;
         let n = self.dim();
+        // U goes by rows into its solve rows, every block first (at the L slot of the
+        // transposed place: row j's blocks are l_ptr[j]..l_ptr[j + 1]), compacted below.
+        let nnz = self.l_row.len();
+        self.u_rows.val.clear();
+        self.u_rows.val.resize(nnz, Mat3::ZERO);
         for k in 0..n {
             let c = self.at_pos[k] as usize;
             // Scatter column c of J (rows in elimination positions).
@@ -349,7 +357,7 @@ impl BlockLu {
                 let ujk = self.work[j];
                 self.work[j] = DMat3::ZERO;
                 self.touched[j] = false;
-                self.u_val[e] = ujk;
+                self.u_rows.val[self.u_to_l[e] as usize] = ujk.as_mat3();
                 for f in self.l_ptr[j] as usize..self.l_ptr[j + 1] as usize {
                     let i = self.l_row[f] as usize;
                     self.work[i] -= self.l_val[f] * ujk;
@@ -397,17 +405,24 @@ impl BlockLu {
             }
             self.l_rows.end_row();
         }
+        // U: compacted in place (a kept block only ever moves to a lower slot).
+        let vals = std::mem::take(&mut self.u_rows.val);
         self.u_rows.clear();
+        self.u_rows.val = vals;
+        let mut kept = 0usize;
         for j in 0..n {
             let keep = self.drop_rel * self.diag_scale[j];
             for f in self.l_ptr[j] as usize..self.l_ptr[j + 1] as usize {
-                let u = &self.u_val[self.l_to_u[f] as usize];
-                if max_abs(u) >= keep {
-                    self.u_rows.push(self.l_row[f], u);
+                let u = self.u_rows.val[f];
+                if max_abs(&u.as_dmat3()) >= keep {
+                    self.u_rows.val[kept] = u;
+                    self.u_rows.push_col(self.l_row[f]);
+                    kept += 1;
                 }
             }
-            self.u_rows.end_row();
+            self.u_rows.ptr.push(kept as u32);
         }
+        self.u_rows.val.truncate(kept);
         self.factored = true;
         Ok(())
     }
@@ -443,7 +458,7 @@ impl BlockLu {
         let n = self.dim();
         n * 8
             + (self.l_ptr.len() + self.u_ptr.len()) * 4
-            + 2 * nnz * (4 + 4 + 72)
+            + nnz * (4 + 4 + 4 + 72)
             + n * 8
             + self.l_rows.heap_bytes()
             + self.u_rows.heap_bytes()
