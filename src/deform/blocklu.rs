@@ -30,9 +30,9 @@
 //!    (a read-modify-write per block). On the body the gather form solves in 0.5 to
 //!    1.3 ms depending on what else runs on the 2-core machine (`fitstation bench
 //!    deform`, "fast step parts", load 2.5 to 6); the scatter form's solve had been
-//!    measured at about 1.3 ms, and with it the warm refit went from 3.6-7.3 ms to
-//!    2.8-3.2 ms in side-by-side runs at load 6 (together with the changes of
-//!    `newton.rs` and `mvc.rs` to the refit's passes).
+//!    measured at about 1.3 ms. Side by side at load 3 (with the other changes of this
+//!    file, `newton.rs` and `mvc.rs`), the bench's warm refit went from 3.1-4.8 ms to
+//!    2.35-2.5 ms.
 //!
 //! Unitless (whatever the matrix holds); indices are the caller's "reduced" indices.
 //! Factor values are stored as `f32` blocks for the solves (half the memory traffic of a
