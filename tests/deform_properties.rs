@@ -756,3 +756,78 @@ fn every_vertex_a_control_is_solved_exactly() {
         assert!(max_distance(&pos, &t) == 0.0, "{lin:?}");
     }
 }
+
+/// A warm refit at the default tolerance (0.1 mm) lands within 0.1 mm of the fixed point
+/// converged tightly from the same start, frame after frame: the short path of a warm
+/// refit (a predictor, one chord step whose move is the convergence test, no closing
+/// residual pass, the next predictor starting from the converged result) must not buy
+/// its speed with accuracy. Covers the rest linearisation (the station's first frames)
+/// and one re-linearised at the first frame's result (the bench's warm refit).
+#[test]
+fn a_warm_refit_lands_within_the_tolerance_of_the_converged_fixed_point() {
+    let mut cases: Vec<(&str, TriMesh, Vec<u32>, Vec<DVec3>, Vec<DVec3>)> = small_meshes()
+        .into_iter()
+        .filter(|(name, _)| *name != "bumpy patch")
+        .map(|(name, m)| {
+            let (c, t) = small_problem(&m);
+            let t2 = nudged(&t);
+            (name, m, c, t, t2)
+        })
+        .collect();
+    if let Some(m) = template() {
+        let parts = fitstation::deform::bench::rigid_parts(&bench_args()).unwrap_or_default();
+        let p = problem(&m, &parts);
+        cases.push(("template", m, p.controls, p.targets, p.refit_targets));
+    }
+    let tol = DEFAULT_MAX_MOVE_M;
+    // The reference: Newton-like (re-linearised after every solve of more than one
+    // step), stopped four orders of magnitude tighter.
+    let tight = DecodeOptions {
+        max_move_m: 1e-8,
+        max_iterations: 400,
+        relinearise_after: 1,
+        ..Default::default()
+    };
+    for (name, m, c, t, t2) in cases {
+        for relinearise_at_first in [false, true] {
+            let mut d =
+                MvcDeformer::new(&m, DecoderKind::FastGaussNewton, DecodeOptions::default())
+                    .unwrap();
+            d.set_controls(&c).unwrap();
+            let mut reference = MvcDeformer::new(&m, DecoderKind::FastGaussNewton, tight).unwrap();
+            reference.set_controls(&c).unwrap();
+            let mut pos = m.positions.clone();
+            let r = d.solve(&t, &mut pos).unwrap();
+            assert!(r.converged, "{name}: first frame {r:?}");
+            if relinearise_at_first {
+                d.relinearise(&pos).unwrap();
+            }
+            let mut worst = 0.0f64;
+            for frame in 0..4 {
+                let targets = if frame % 2 == 0 { &t2 } else { &t };
+                let mut want = pos.clone();
+                let rr = reference.solve(targets, &mut want).unwrap();
+                assert!(rr.converged, "{name} frame {frame}: reference {rr:?}");
+                let res = reference.residual(&want);
+                assert!(res < 1e-6, "{name} frame {frame}: reference residual {res} m");
+                let before = pos.clone();
+                let r = d.solve(targets, &mut pos).unwrap();
+                assert!(r.converged, "{name} frame {frame}: {r:?}");
+                assert!(
+                    max_distance(&before, &pos) > 1e-3,
+                    "{name} frame {frame}: the refit moves nothing"
+                );
+                let dev = max_distance(&pos, &want);
+                worst = worst.max(dev);
+                assert!(
+                    dev < tol,
+                    "{name} frame {frame} (re-linearised {relinearise_at_first}): {dev} m from the converged fixed point, {r:?}"
+                );
+            }
+            eprintln!(
+                "{name} (re-linearised at frame 1: {relinearise_at_first}): warm refits within {:.4} mm of the tight fixed point",
+                worst * 1e3
+            );
+        }
+    }
+}

@@ -34,6 +34,9 @@ const WEIGHT_REPRODUCTION_TOL: f64 = 1e-10;
 /// Reproduction tolerance of the whole decoding at rest, relative to the ring radius (the
 /// normal part falls back to [`RingEncodingKind::RingHeight`] beyond it).
 const REPRODUCTION_TOL: f64 = 1e-7;
+/// Largest ring decoded by the single-pass path of [`MeanValueEncoding::decode_vertex`]
+/// (its scratch lives on the stack); larger rings take the general path.
+const FAST_RING: usize = 16;
 
 /// How a vertex's normal component is encoded.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -361,8 +364,74 @@ impl MeanValueEncoding {
     /// of a collinear ring.
     #[inline]
     pub fn decode_vertex(&self, v: usize, positions: &[DVec3]) -> DVec3 {
+        if let Some(p) = self.decode_closed_tangent(v, positions) {
+            return p;
+        }
         let parts = self.decode_parts(v, positions);
         parts.affine + parts.normal_offset
+    }
+
+    /// The common case of [`Self::decode_vertex`] in one pass over the ring: a closed
+    /// ring of at most [`FAST_RING`] neighbours with tangent coefficients, whose plane is
+    /// well defined. The same formulas as [`Self::decode_parts`] (which reads every
+    /// neighbour three times and recomputes each projection); the offsets from the ring
+    /// centre and their heights are kept on the stack. Why: the fast decoder evaluates
+    /// this for every free vertex once per Gauss-Newton step. `None` for anything else.
+    #[inline]
+    fn decode_closed_tangent(&self, v: usize, positions: &[DVec3]) -> Option<DVec3> {
+        let nb = self.rings.neighbours(v);
+        let m = nb.len();
+        if !(3..=FAST_RING).contains(&m)
+            || self.kind[v] != RingEncodingKind::Tangent
+            || self.rings.is_boundary(v)
+        {
+            return None;
+        }
+        let off = self.rings.offset(v);
+        let w = &self.weights[off..off + m];
+        let b = &self.tangents[off..off + m];
+        let mut d = [DVec3::ZERO; FAST_RING];
+        let mut centre = DVec3::ZERO;
+        let mut affine = DVec3::ZERO; // sum w_i v_i
+        for ((dk, &i), wk) in d.iter_mut().zip(nb).zip(w) {
+            let p = positions[i as usize];
+            *dk = p;
+            centre += p;
+            affine += *wk * p;
+        }
+        centre /= m as f64;
+        // Offsets from the centre, the largest squared one, and the plane normal
+        // sum (v_i - l) x (v_{i+1} - l) (see `ring_plane`).
+        let mut far2 = -1.0f64;
+        for dk in &mut d[..m] {
+            *dk -= centre;
+            far2 = far2.max(dk.length_squared());
+        }
+        let mut sum = DVec3::ZERO;
+        let mut prev = d[m - 1];
+        for &dk in &d[..m] {
+            sum += prev.cross(dk);
+            prev = dk;
+        }
+        let len = sum.length();
+        if !(len > REL_EPS * far2 && sum.is_finite()) {
+            return None; // collinear ring: the general path orients its plane
+        }
+        let n = sum / len;
+        // Heights h_i = (v_i - l).n and their weighted sum.
+        let mut h = [0.0f64; FAST_RING];
+        let mut height = 0.0;
+        for ((hk, dk), wk) in h.iter_mut().zip(&d[..m]).zip(w) {
+            *hk = dk.dot(n);
+            height += wk * *hk;
+        }
+        // p - v_i' = (affine - l - height n) - (d_i - h_i n).
+        let a = affine - centre;
+        let mut s = 0.0;
+        for (((dk, hk), wk), bk) in d[..m].iter().zip(&h[..m]).zip(w).zip(b) {
+            s += wk * ((a - *dk) - (height - hk) * n).length() * bk;
+        }
+        Some(affine + s * n)
     }
 
     /// The decoding split into the affine combination `sum w_i v_i` and the normal offset

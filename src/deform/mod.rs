@@ -58,10 +58,18 @@
 //! (Anderson acceleration, `anderson.rs`); that converges in 12-15 steps on the body when
 //! hands, feet and head are held (method.md: they move rigidly) and in 45-70 when they
 //! are free (the fingers dominate). The coupled system sees that feedback in its
-//! Jacobian; its chord steps are mixed the same way (a no-op when they converge in two).
+//! Jacobian; its chord steps from the second on are mixed the same way (nothing to mix
+//! when a solve converges with the predictor and one chord step, the usual refit).
 //! Cost of the coupled system: its block LU holds 1.66 M values on the body (the normal
 //! equations' Cholesky factor 2.9 M, the scalar one 0.27 M); a solve with it (f32
-//! values) took about 1.3 ms, a residual pass about 0.8 ms: a step costs about 2 ms.
+//! values, row-oriented) takes 0.5 to 1.3 ms and a residual pass 0.55 to 0.7 ms on the
+//! 2-core machine, depending on what else runs (`fitstation bench deform`, "fast step
+//! parts", at load 2.5 to 5). A warm refit is therefore budgeted as a predictor solve, one
+//! residual pass and one chord solve: the predictor from the result of a converged solve
+//! takes the residual there as zero (it was certified by that solve's last step), and a
+//! converged solve does not evaluate the residual again at its end (`newton.rs`,
+//! `CachedResidual`). The convergence test is unchanged: it reads the chord step's
+//! move, computed from a residual evaluated in `f64` at the predicted surface.
 //!
 //! Both decoders use hard constraints by default (control vertices eliminated), so they
 //! share the exact fixed point. With a finite `DecodeOptions::constraint_weight` the fast
@@ -195,8 +203,11 @@ pub struct DecodeReport {
     pub iterations: usize,
     /// Largest vertex move of the last iteration, metres.
     pub max_move_m: f64,
-    /// Largest `|v - v_mv|` over free vertices at the end, metres (for the Laplacian
-    /// deformer: largest Laplacian-coordinate residual).
+    /// Largest `|v - v_mv|` over free vertices, metres: at the end, except after a
+    /// converged solve of the coupled fast decoder, where it is the value its last step
+    /// started from (that step moved no vertex more than the tolerance; evaluating the
+    /// residual again at the end would cost another pass over the mesh per frame). For
+    /// the Laplacian deformer: largest Laplacian-coordinate residual.
     pub residual_m: f64,
     /// Largest `|v - target|` over control vertices at the end, metres.
     pub constraint_residual_m: f64,

@@ -45,6 +45,11 @@ pub struct MvcDeformer {
     /// current fixed set, and whether it is in use (else the frozen-offset engine).
     coupled: Option<CoupledSystem>,
     coupled_active: bool,
+    /// Coupled system: largest `|v - v_mv|` at the start of the last step of the current
+    /// solve (NaN when that step did not evaluate it).
+    last_step_residual: f64,
+    /// Coupled system: chord steps taken so far in the current solve.
+    chord_steps: usize,
     /// The scalar engine has been factored for the current fixed set.
     engine_factored: bool,
     /// Rest positions (the first linearisation point) and mean edge length, metres.
@@ -139,6 +144,8 @@ impl MvcDeformer {
             }),
             coupled: None,
             coupled_active: false,
+            last_step_residual: f64::NAN,
+            chord_steps: 0,
             engine_factored: false,
             rest: rest.positions.clone(),
             mean_edge_m: rest.mean_edge_length(),
@@ -276,22 +283,20 @@ impl MvcDeformer {
         // saved a few steps on the body with rigid extremities but tripled the refit
         // with free ones (measured), so they are not kept.
         self.anderson.reset();
+        self.last_step_residual = f64::NAN;
+        self.chord_steps = 0;
         let mut first = 0;
         if self.coupled_active && self.opts.max_iterations > 0 {
             // Predictor: the linear response of the current surface to the control moves
-            // (see `CoupledSystem::step`), then chord steps.
+            // (see `CoupledSystem::step`), applied in place, then chord steps.
             if let Some(c) = &mut self.coupled {
                 self.delta.iter_mut().for_each(|d| *d = DVec3::ZERO);
                 for (&v, t) in self.controls.iter().zip(targets) {
                     self.delta[v as usize] = *t - positions[v as usize];
                 }
-                let (moved, _) = c.step(
-                    &self.encoding,
-                    positions,
-                    Some(&self.delta),
-                    &mut self.step_out,
-                );
-                positions.copy_from_slice(&self.step_out);
+                self.last_step_residual =
+                    c.solve_step(&self.encoding, positions, Some(&self.delta));
+                let moved = c.apply_step(positions);
                 for (&v, t) in self.controls.iter().zip(targets) {
                     positions[v as usize] = *t;
                 }
@@ -331,6 +336,18 @@ impl MvcDeformer {
             report.relinearised = self.coupled_active;
         }
         report.residual_m = match (&mut self.coupled, self.coupled_active) {
+            // A converged coupled solve reports the residual its last step started from
+            // instead of paying another pass over the mesh for the one at its end (the
+            // last step moved no vertex more than the tolerance); the next solve's
+            // predictor then starts without a residual pass.
+            (Some(c), true)
+                if report.converged
+                    && !report.relinearised
+                    && self.last_step_residual.is_finite() =>
+            {
+                c.mark_converged(positions);
+                self.last_step_residual
+            }
             (Some(c), true) => c.residual_at(&self.encoding, positions),
             _ => self.residual(positions),
         };
@@ -368,7 +385,17 @@ impl MvcDeformer {
     fn gauss_newton_step(&mut self, targets: &[DVec3], positions: &mut [DVec3]) -> f64 {
         if self.coupled_active {
             if let Some(c) = &mut self.coupled {
-                let (plain, _) = c.step(&self.encoding, positions, None, &mut self.step_out);
+                self.last_step_residual = c.solve_step(&self.encoding, positions, None);
+                self.chord_steps += 1;
+                if self.chord_steps == 1 {
+                    // Nothing to mix yet, and usually the last step (a refit converges
+                    // with the predictor and one chord step): applied in place, without
+                    // handing a copy of the mesh to the acceleration. The mixing starts
+                    // with the second chord step.
+                    return c.apply_step(positions);
+                }
+                self.step_out.copy_from_slice(positions);
+                let plain = c.apply_step(&mut self.step_out);
                 if !plain.is_finite() {
                     return plain;
                 }
@@ -412,6 +439,34 @@ impl MvcDeformer {
             }
         }
         r
+    }
+
+    /// Bench only: times of the two halves of a coupled chord step at `positions`, one
+    /// residual pass (all free vertices decoded) and one solve of the factored system,
+    /// milliseconds, medians of `repeats`, and the blocks the solve reads and the factor
+    /// holds (zero without the block LU); None without the coupled system.
+    pub(crate) fn step_part_times(
+        &mut self,
+        positions: &[DVec3],
+        repeats: usize,
+    ) -> Option<(f64, f64, usize, usize)> {
+        let c = self.coupled.as_mut().filter(|_| self.coupled_active)?;
+        let mut residual = Vec::with_capacity(repeats);
+        let mut solve = Vec::with_capacity(repeats);
+        for _ in 0..repeats.max(1) {
+            let t = std::time::Instant::now();
+            std::hint::black_box(c.residual_at(&self.encoding, positions));
+            residual.push(t.elapsed().as_secs_f64() * 1e3);
+            let t = std::time::Instant::now();
+            c.solve_cached_residual();
+            solve.push(t.elapsed().as_secs_f64() * 1e3);
+        }
+        let median = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            v[v.len() / 2]
+        };
+        let (read, held) = c.lu_block_counts().unwrap_or((0, 0));
+        Some((median(residual), median(solve), read, held))
     }
 
     /// Forgets the fast decoder's acceleration history (each solve starts afresh anyway;

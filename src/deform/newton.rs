@@ -48,6 +48,21 @@ pub(crate) enum CoupledEngine {
     NormalEquations,
 }
 
+/// What a [`CoupledSystem`] knows of the residual `F` at its remembered positions.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum CachedResidual {
+    /// Nothing.
+    Unknown,
+    /// `cached_f` holds `F` there.
+    Evaluated,
+    /// A solve converged there: its last chord step moved no vertex more than the
+    /// tolerance, so `F` is below what the tolerance resolves. The predictor of the next
+    /// solve takes it as zero instead of paying a residual pass; the chord steps after
+    /// it evaluate `F` as always, so the fixed point and the convergence test do not
+    /// depend on this (the predictor is only off by the size of that last step).
+    Converged,
+}
+
 /// The coupled system of one fixed set (controls + anchors).
 pub(crate) struct CoupledSystem {
     /// Reduced index -> vertex, and vertex -> reduced index (or [`NOT_FREE`]).
@@ -79,11 +94,11 @@ pub(crate) struct CoupledSystem {
     residual: Vec<DVec3>,
     delta: Vec<DVec3>,
     work: Vec<DVec3>,
-    /// `F` of the free rows at `cached_at` (the end of the last solve, or the last
+    /// What is known of `F` at `cached_at` (the end of the last solve, or the last
     /// linearisation point): a solve that starts there skips one evaluation.
     cached_f: Vec<DVec3>,
     cached_at: Vec<DVec3>,
-    cache_valid: bool,
+    cache: CachedResidual,
     fd_step: f64,
 }
 
@@ -162,7 +177,7 @@ impl CoupledSystem {
             }
             adj_ptr.push(adj.len() as u32);
         }
-        let lu = BlockLu::analyse(&adj_ptr, &adj).ok();
+        let lu = BlockLu::analyse(&adj_ptr, &adj, super::blocklu::DROP_REL).ok();
         Ok(CoupledSystem {
             free,
             reduced_of,
@@ -184,7 +199,7 @@ impl CoupledSystem {
             delta: vec![DVec3::ZERO; nf],
             cached_f: vec![DVec3::ZERO; nf],
             cached_at: Vec::new(),
-            cache_valid: false,
+            cache: CachedResidual::Unknown,
             work: Vec::new(),
             fd_step: FD_REL_STEP * mean_edge_m.max(f64::MIN_POSITIVE),
         })
@@ -215,7 +230,7 @@ impl CoupledSystem {
         positions: &[DVec3],
     ) -> Result<(), DeformError> {
         self.factored = false;
-        self.cache_valid = false;
+        self.cache = CachedResidual::Unknown;
         self.work.clear();
         self.work.extend_from_slice(positions);
         let h = self.fd_step;
@@ -277,7 +292,7 @@ impl CoupledSystem {
         self.factored = true;
         self.cached_at.clear();
         self.cached_at.extend_from_slice(positions);
-        self.cache_valid = true;
+        self.cache = CachedResidual::Evaluated;
         Ok(())
     }
 
@@ -287,7 +302,10 @@ impl CoupledSystem {
     /// the moved fixed vertices, `F(x) + J_fixed jump`, so the step is the linear
     /// response of the current smooth surface rather than a step from a surface with its
     /// controls torn away from their neighbours; fixed vertices are written moved.
-    /// Returns (step length over free vertices, largest residual `|F_v(x)|`), metres.
+    /// Returns (step length over free vertices, largest residual `|F_v(x)|`), metres; the
+    /// residual is NaN when this step did not evaluate it (a predictor from the result
+    /// of a converged solve, see [`CachedResidual::Converged`]).
+    #[cfg(test)]
     pub(crate) fn step(
         &mut self,
         enc: &MeanValueEncoding,
@@ -295,11 +313,42 @@ impl CoupledSystem {
         jump: Option<&[DVec3]>,
         out: &mut [DVec3],
     ) -> (f64, f64) {
+        let fmax = self.solve_step(enc, positions, jump);
+        out.copy_from_slice(positions);
+        if let Some(jump) = jump {
+            for (o, d) in out.iter_mut().zip(jump) {
+                *o += *d;
+            }
+        }
+        (self.apply_step(out), fmax)
+    }
+
+    /// The linear half of [`Self::step`]: evaluates `F` at `positions` (or takes it from
+    /// what is remembered there), adds `J_fixed jump` for a predictor, and solves for the
+    /// step, kept for [`Self::apply_step`] (split so the deformer can apply it in place or
+    /// hand it to its acceleration without copying the mesh). Returns the largest
+    /// residual `|F_v(x)|`, metres (NaN when not evaluated, see [`Self::step`]); a failed
+    /// solve leaves a NaN step.
+    pub(crate) fn solve_step(
+        &mut self,
+        enc: &MeanValueEncoding,
+        positions: &[DVec3],
+        jump: Option<&[DVec3]>,
+    ) -> f64 {
         let mut fmax = 0.0f64;
-        let cached = self.cache_valid && self.cached_at.as_slice() == positions;
-        self.cache_valid = false;
+        let cache = match self.cache {
+            CachedResidual::Unknown => CachedResidual::Unknown,
+            c if self.cached_at.as_slice() == positions => c,
+            _ => CachedResidual::Unknown,
+        };
+        self.cache = CachedResidual::Unknown;
+        // Only a predictor may take the residual of a converged start as zero: a chord
+        // step from there must evaluate it (it is the certificate).
+        let assume_zero = cache == CachedResidual::Converged && jump.is_some();
         for (r, &v) in self.free.iter().enumerate() {
-            let mut f = if cached {
+            let mut f = if assume_zero {
+                DVec3::ZERO
+            } else if cache == CachedResidual::Evaluated {
                 self.cached_f[r]
             } else {
                 positions[v as usize] - enc.decode_vertex(v as usize, positions)
@@ -312,14 +361,8 @@ impl CoupledSystem {
             }
             self.residual[r] = f;
         }
-        out.copy_from_slice(positions);
-        if let Some(jump) = jump {
-            for (o, d) in out.iter_mut().zip(jump) {
-                *o += *d;
-            }
-        }
-        if self.free.is_empty() {
-            return (0.0, fmax.sqrt());
+        if assume_zero {
+            fmax = f64::NAN;
         }
         match (self.engine, &mut self.lu, &mut self.normal) {
             (CoupledEngine::BlockLu, Some(lu), _) => {
@@ -335,17 +378,23 @@ impl CoupledSystem {
                 &self.residual,
                 &mut self.delta,
             ),
-            _ => return (f64::NAN, fmax.sqrt()),
+            _ => self.delta.iter_mut().for_each(|d| *d = DVec3::NAN),
         }
+        fmax.sqrt()
+    }
+
+    /// Adds the step of the last [`Self::solve_step`] to the free vertices of
+    /// `positions`; returns its length, metres (NaN propagates).
+    pub(crate) fn apply_step(&self, positions: &mut [DVec3]) -> f64 {
         let mut max_move = 0.0f64;
         for (&v, d) in self.free.iter().zip(&self.delta) {
             let m = d.length_squared();
             if !(m <= max_move) {
                 max_move = m; // also propagates NaN
             }
-            out[v as usize] = positions[v as usize] + *d;
+            positions[v as usize] += *d;
         }
-        (max_move.sqrt(), fmax.sqrt())
+        max_move.sqrt()
     }
 
     /// Largest `|F_v|` over the free vertices at `positions`, metres; remembered for a
@@ -359,8 +408,35 @@ impl CoupledSystem {
         }
         self.cached_at.clear();
         self.cached_at.extend_from_slice(positions);
-        self.cache_valid = true;
+        self.cache = CachedResidual::Evaluated;
         fmax.sqrt()
+    }
+
+    /// Remembers `positions` as the result of a converged solve (see
+    /// [`CachedResidual::Converged`]); no evaluation.
+    pub(crate) fn mark_converged(&mut self, positions: &[DVec3]) {
+        self.cached_at.clear();
+        self.cached_at.extend_from_slice(positions);
+        self.cache = CachedResidual::Converged;
+    }
+
+    /// Bench only: one solve of the factored system with the residual last evaluated by
+    /// [`Self::residual_at`] as right-hand side (the linear-algebra half of a chord step).
+    pub(crate) fn solve_cached_residual(&mut self) {
+        for (d, f) in self.delta.iter_mut().zip(&self.cached_f) {
+            *d = -*f;
+        }
+        match (self.engine, &mut self.lu, &mut self.normal) {
+            (CoupledEngine::BlockLu, Some(lu), _) => lu.solve_in_place(&mut self.delta),
+            (CoupledEngine::NormalEquations, _, Some(ne)) => ne.solve(
+                &self.ent_ptr,
+                &self.ent_col,
+                &self.jac,
+                &self.cached_f,
+                &mut self.delta,
+            ),
+            _ => {}
+        }
     }
 
     /// Whether `fixed` is the fixed set this system was built for.
@@ -382,6 +458,14 @@ impl CoupledSystem {
             + self.work.len() * 24
             + self.lu.as_ref().map_or(0, |l| l.heap_bytes())
             + self.normal.as_ref().map_or(0, |n| n.heap_bytes())
+    }
+
+    /// Block-LU engine: blocks its solves read and blocks its factor holds.
+    pub(crate) fn lu_block_counts(&self) -> Option<(usize, usize)> {
+        match (self.engine, &self.lu) {
+            (CoupledEngine::BlockLu, Some(lu)) => Some((lu.solve_block_count(), lu.block_count())),
+            _ => None,
+        }
     }
 
     /// Stored scalar values of the factor in use.
