@@ -557,8 +557,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     }
     // Where a chord step's time goes (after the sequence: this resets the residual
     // remembered at its result).
-    if let Some((residual_ms, solve_ms, read, held)) = fast.step_part_times(&warm_pos, repeats)
-    {
+    if let Some((residual_ms, solve_ms, read, held)) = fast.step_part_times(&warm_pos, repeats) {
         println!(
             "fast step parts:     {:8.2} ms residual pass (every free vertex decoded), {:.2} ms block-LU solve ({read} of the factor's {held} blocks read), medians of {repeats}",
             residual_ms, solve_ms

@@ -572,7 +572,11 @@ mod tests {
                 .zip(&x_true)
                 .map(|(a, t)| {
                     // Exact: relative to each unknown; dropped: to the largest one.
-                    let scale = if drop == 0.0 { t.length().max(1.0) } else { largest };
+                    let scale = if drop == 0.0 {
+                        t.length().max(1.0)
+                    } else {
+                        largest
+                    };
                     (*a - *t).length() / scale
                 })
                 .fold(0.0, f64::max);
