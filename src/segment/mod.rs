@@ -415,6 +415,17 @@ fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
     }
 }
 
+/// The person's box grown by [`ADAPT_MARGIN_PX`] as `(x0, y0, x1, y1)`: pixels the
+/// backdrop statistics (adaptation, exposure gain) keep away from.
+fn keep_out_box(b: PixelBox) -> (usize, usize, usize, usize) {
+    (
+        b.min_x.saturating_sub(ADAPT_MARGIN_PX) as usize,
+        b.min_y.saturating_sub(ADAPT_MARGIN_PX) as usize,
+        (b.max_x + ADAPT_MARGIN_PX) as usize,
+        (b.max_y + ADAPT_MARGIN_PX) as usize,
+    )
+}
+
 const BAND_NONE: u8 = 0;
 const BAND_BG: u8 = 1;
 const BAND_FG: u8 = 2;
@@ -652,14 +663,7 @@ impl BackgroundModel {
         let (w, h) = (self.width as usize, self.height as usize);
         // About a thousand samples or more, at most every 16th pixel (3600 at 720p).
         let step = (((w * h) as f64 / 1024.0).sqrt() as usize).clamp(1, 16);
-        let keep_out = self.last_box.map(|b| {
-            (
-                b.min_x.saturating_sub(ADAPT_MARGIN_PX) as usize,
-                b.min_y.saturating_sub(ADAPT_MARGIN_PX) as usize,
-                (b.max_x + ADAPT_MARGIN_PX) as usize,
-                (b.max_y + ADAPT_MARGIN_PX) as usize,
-            )
-        });
+        let keep_out = self.last_box.map(keep_out_box);
         self.gain_samples.clear();
         let ck2 = self.opts.chroma_k * self.opts.chroma_k;
         for y in (step / 2..h).step_by(step) {
@@ -1050,14 +1054,7 @@ impl BackgroundModel {
         let w = self.width as usize;
         let raw = frame.as_raw();
         let phase = self.frames % ADAPT_ROW_STRIDE;
-        let keep_out = person.map(|b| {
-            (
-                b.min_x.saturating_sub(ADAPT_MARGIN_PX) as usize,
-                b.min_y.saturating_sub(ADAPT_MARGIN_PX) as usize,
-                (b.max_x + ADAPT_MARGIN_PX) as usize,
-                (b.max_y + ADAPT_MARGIN_PX) as usize,
-            )
-        });
+        let keep_out = person.map(keep_out_box);
         let mut y = phase as usize;
         while y < self.height as usize {
             for x in 0..w {
