@@ -813,7 +813,10 @@ fn a_warm_refit_lands_within_the_tolerance_of_the_converged_fixed_point() {
                 let rr = reference.solve(targets, &mut want).unwrap();
                 assert!(rr.converged, "{name} frame {frame}: reference {rr:?}");
                 let res = reference.residual(&want);
-                assert!(res < 1e-6, "{name} frame {frame}: reference residual {res} m");
+                assert!(
+                    res < 1e-6,
+                    "{name} frame {frame}: reference residual {res} m"
+                );
                 let before = pos.clone();
                 let r = d.solve(targets, &mut pos).unwrap();
                 assert!(r.converged, "{name} frame {frame}: {r:?}");
