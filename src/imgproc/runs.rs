@@ -204,7 +204,9 @@ pub fn write_component(runs: &RunComponents, comp: usize, out: &mut Vec<u8>) {
 /// background seen through a gap: `background_evidence(y, x0, x1)` counts the pixels of
 /// the hole run `[x0, x1)` of row `y` that are explained as background, and a hole stays
 /// open when it holds at least `min_open_area` pixels of which at least `open_fraction`
-/// are such evidence. `evidence` is scratch (one counter per component).
+/// are such evidence. `evidence` is scratch (one counter per component); the runs of the
+/// holes left open are written to `open` (cleared first).
+#[allow(clippy::too_many_arguments)]
 pub fn fill_holes_selective(
     mask: &mut [u8],
     width: u32,
@@ -214,7 +216,9 @@ pub fn fill_holes_selective(
     mut background_evidence: impl FnMut(usize, usize, usize) -> u64,
     min_open_area: u64,
     open_fraction: f64,
+    open: &mut Vec<Run>,
 ) {
+    open.clear();
     let w = width as usize;
     scratch.compute(mask, width, height, false, false);
     evidence.clear();
@@ -232,9 +236,11 @@ pub fn fill_holes_selective(
         if comp.touches_border(width, height) {
             continue;
         }
-        let open =
+        let is_open =
             comp.area >= min_open_area && evidence[c] as f64 >= open_fraction * comp.area as f64;
-        if !open {
+        if is_open {
+            open.push(*run);
+        } else {
             let y = run.y as usize;
             mask[y * w + run.x0 as usize..y * w + run.x1 as usize].fill(super::MASK_ON);
         }
@@ -300,15 +306,20 @@ mod tests {
                 .count() as u64
         };
         let mut out = m.clone();
-        let (mut s, mut ev) = (RunComponents::default(), Vec::new());
-        fill_holes_selective(&mut out, w, h, &mut s, &mut ev, evidence, 2, 0.5);
+        let (mut s, mut ev, mut open) = (RunComponents::default(), Vec::new(), Vec::new());
+        fill_holes_selective(&mut out, w, h, &mut s, &mut ev, evidence, 2, 0.5, &mut open);
         assert_eq!(out[2 * 10 + 2], 0);
         assert_eq!(out[3 * 10 + 3], 0);
         assert_eq!(out[2 * 10 + 6], MASK_ON);
+        assert_eq!(
+            open,
+            vec![Run { y: 2, x0: 2, x1: 4 }, Run { y: 3, x0: 2, x1: 4 }]
+        );
         // A hole below the minimum area is filled whatever its evidence.
         let mut out = m.clone();
-        fill_holes_selective(&mut out, w, h, &mut s, &mut ev, evidence, 5, 0.5);
+        fill_holes_selective(&mut out, w, h, &mut s, &mut ev, evidence, 5, 0.5, &mut open);
         assert_eq!(out[2 * 10 + 2], MASK_ON);
+        assert!(open.is_empty());
     }
 
     #[test]

@@ -428,6 +428,8 @@ struct ViewState {
     scratch: Vec<DVec2>,
     normalized: Vec<DVec2>,
     fill_scratch: Vec<(u32, f32)>,
+    /// Background pixels of the segmentation inside and around its open holes.
+    hole_px: Vec<u32>,
     target: SilhouetteTarget,
 }
 
@@ -470,6 +472,7 @@ impl SilhouetteExecutor {
                 scratch: Vec::new(),
                 normalized: Vec::new(),
                 fill_scratch: Vec::new(),
+                hole_px: Vec::new(),
                 target: SilhouetteTarget::default(),
             }
         };
@@ -596,7 +599,12 @@ impl SilhouetteExecutor {
                 &mut analysis.contour,
             );
             // The mask from the sub-pixel contour: its border on the edge's 50 % level.
+            // The holes the segmentation left open (the backdrop seen between an arm and
+            // the trunk) are opened again below, after the fitter's target took the
+            // filled silhouette (its queries measure from the outer contour).
+            state.hole_px.clear();
             if !analysis.contour.is_empty() {
+                collect_hole_background(state.model.open_holes(), mask, &mut state.hole_px);
                 analysis.stats.person_px =
                     contour::fill_polygon(&analysis.contour.points, mask, &mut state.fill_scratch);
             }
@@ -627,6 +635,11 @@ impl SilhouetteExecutor {
                 state.normalized.reverse();
             }
             state.target.rebuild(mask, &analysis.contour);
+            for &i in &state.hole_px {
+                let v = &mut mask.data[i as usize];
+                analysis.stats.person_px -= (*v != 0) as u64;
+                *v = 0;
+            }
             timings.contour_ms += ms(tc);
         }
         let tl = Instant::now();
@@ -714,6 +727,30 @@ fn view_verdicts(stats: &SegmentStats, view: View, o: &VerdictOptions, out: &mut
 }
 
 /// Traces the person's outer contour, refines it to sub-pixel and resamples it.
+/// The background pixels of `mask` in the coarse cells of the open holes `holes` and one
+/// cell around them (the hole's border was re-tested at full resolution there), as
+/// row-major indices into `out` (cleared first).
+fn collect_hole_background(holes: &[crate::imgproc::Run], mask: &Mask, out: &mut Vec<u32>) {
+    out.clear();
+    let (w, h) = (mask.width as usize, mask.height as usize);
+    let c = crate::segment::COARSE as usize;
+    for run in holes {
+        let (y, x0, x1) = (run.y as usize, run.x0 as usize, run.x1 as usize);
+        let px0 = x0.saturating_sub(1) * c;
+        let px1 = ((x1 + 1) * c).min(w);
+        let py0 = y.saturating_sub(1) * c;
+        let py1 = ((y + 2) * c).min(h);
+        for py in py0..py1 {
+            let row = py * w;
+            for px in px0..px1 {
+                if mask.data[row + px] == 0 {
+                    out.push((row + px) as u32);
+                }
+            }
+        }
+    }
+}
+
 fn trace_person(
     state: &mut ViewState,
     frame: &RgbImage,

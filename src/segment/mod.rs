@@ -309,11 +309,18 @@ pub struct BackgroundModel {
     /// Per coarse column: row of the last foreground cell of the current unbroken run of
     /// changed cells (see [`bridge_columns`]).
     column_top: Vec<u32>,
+    /// Per coarse column: the current run of changed cells holds a foreground cell
+    /// outside the shadow zone (see [`bridge_columns`]).
+    column_anchored: Vec<bool>,
+    /// No shadow zone was set (no calibration): every pixel may be shadow.
+    zone_everywhere: bool,
     tmp: Vec<u8>,
     eroded: Vec<u8>,
     dilated: Vec<u8>,
     runs: RunComponents,
     hole_runs: RunComponents,
+    /// Coarse runs of the holes left open in the last frame (see [`Self::open_holes`]).
+    open_holes: Vec<imgproc::Run>,
     band_state: Vec<u8>,
     band_px: Vec<u32>,
     band_out: Vec<u8>,
@@ -372,18 +379,33 @@ const OPEN_HOLE_FRACTION: f64 = 0.5;
 const NO_RUN: u32 = u32::MAX;
 
 /// Promotes WEAK cells that lie in a column between two foreground cells, with only
-/// changed cells between them, to BRIDGED (foreground); other WEAK cells stay WEAK (even,
-/// so background to the majority filter).
+/// changed cells between them, to BRIDGED (foreground), when the column's unbroken run
+/// of changed cells above them holds a foreground cell outside the shadow zone (`zone`,
+/// one flag per coarse cell, 1 in the zone); other WEAK cells stay WEAK (even, so
+/// background to the majority filter).
 ///
 /// A standing person is a vertical figure: where legs in trousers of the floor's own hue
 /// cross the floor's image they look like their own cast shadow (darker, same chroma),
-/// but they hang between the clearly changed thighs above and the shoes below. A floor
-/// shadow beside the feet has no foreground above it in its column, and the floor seen
-/// through the gap between the legs ends in unchanged (lit) floor before anything below.
-fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
+/// but they hang from the clearly changed thighs, seen against the backdrop above the
+/// zone, down to the shoes. A floor shadow beside the feet has no foreground above it in
+/// its column; the floor seen through the gap between the legs ends in unchanged (lit)
+/// floor before anything below; and the shadowed floor between the two feet of a side
+/// view lies under the far foot, which stands inside the zone with lit floor above it.
+/// Without a calibration the whole frame is zone and the anchor is not asked for.
+fn bridge_columns(
+    coarse: &mut [u8],
+    zone: &[u8],
+    cw: usize,
+    ch: usize,
+    zone_everywhere: bool,
+    top: &mut Vec<u32>,
+    anchored: &mut Vec<bool>,
+) {
     const CHUNK: usize = 16;
     top.clear();
     top.resize(cw, NO_RUN);
+    anchored.clear();
+    anchored.resize(cw, false);
     for cy in 0..ch {
         let row = cy * cw;
         let mut cx = 0;
@@ -393,21 +415,26 @@ fn bridge_columns(coarse: &mut [u8], cw: usize, ch: usize, top: &mut Vec<u32>) {
                 let end = (cx + CHUNK).min(cw);
                 if coarse[row + cx..row + end].iter().all(|&v| v == 0) {
                     top[cx..end].fill(NO_RUN);
+                    anchored[cx..end].fill(false);
                     cx = end;
                     continue;
                 }
             }
             match coarse[row + cx] {
-                0 => top[cx] = NO_RUN,
+                0 => {
+                    top[cx] = NO_RUN;
+                    anchored[cx] = false;
+                }
                 WEAK => {}
                 _ => {
                     let t = top[cx];
-                    if t != NO_RUN && (t as usize) + 1 < cy {
+                    if t != NO_RUN && (t as usize) + 1 < cy && (anchored[cx] || zone_everywhere) {
                         for y in t as usize + 1..cy {
                             coarse[y * cw + cx] = BRIDGED;
                         }
                     }
                     top[cx] = cy as u32;
+                    anchored[cx] |= zone[row + cx] == 0;
                 }
             }
             cx += 1;
@@ -453,11 +480,14 @@ impl BackgroundModel {
             coarse_clean: Vec::new(),
             coarse_body: Vec::new(),
             column_top: Vec::new(),
+            column_anchored: Vec::new(),
+            zone_everywhere: true,
             tmp: Vec::new(),
             eroded: Vec::new(),
             dilated: Vec::new(),
             runs: RunComponents::default(),
             hole_runs: RunComponents::default(),
+            open_holes: Vec::new(),
             band_state: vec![BAND_NONE; n],
             band_px: Vec::new(),
             band_out: Vec::new(),
@@ -588,6 +618,7 @@ impl BackgroundModel {
         }
         let w = self.width as usize;
         let cw = w.div_ceil(COARSE as usize);
+        self.zone_everywhere = zone.data.iter().all(|&v| v != 0);
         for (i, &v) in zone.data.iter().enumerate() {
             let z = (v != 0) as u8;
             self.zone[i] = z;
@@ -602,6 +633,15 @@ impl BackgroundModel {
             }
         }
         Ok(())
+    }
+
+    /// The holes of the last frame's person that were left open (the backdrop seen
+    /// through a gap, see the module docs), as runs of the coarse grid: cell `(x, y)`
+    /// covers the pixels `[COARSE x, COARSE (x + 1)) x [COARSE y, COARSE (y + 1))`. The
+    /// mask of [`Self::segment`] has them open, with their border re-tested at full
+    /// resolution.
+    pub fn open_holes(&self) -> &[imgproc::Run] {
+        &self.open_holes
     }
 
     /// The model colour of a pixel.
@@ -849,7 +889,15 @@ impl BackgroundModel {
         // WEAK cells are even: the majority filter below (which counts `v & 1`) takes
         // them as background without a clean-up pass.
         if o.bridge_columns {
-            bridge_columns(&mut self.coarse, cw, ch, &mut self.column_top);
+            bridge_columns(
+                &mut self.coarse,
+                &self.coarse_model.zone,
+                cw,
+                ch,
+                self.zone_everywhere,
+                &mut self.column_top,
+                &mut self.column_anchored,
+            );
         }
         let nc = (cw * ch) as f32;
         stats.mean_luma = luma_sum as f32 / nc;
@@ -875,6 +923,7 @@ impl BackgroundModel {
         let body = match first {
             Some(c) if self.runs.components[c].area >= min_area.max(1) => c,
             _ => {
+                self.open_holes.clear();
                 self.frames += 1;
                 self.last_box = None;
                 self.adapt(frame, None);
@@ -906,8 +955,10 @@ impl BackgroundModel {
                 },
                 OPEN_HOLE_MIN_CELLS,
                 OPEN_HOLE_FRACTION,
+                &mut self.open_holes,
             );
         } else {
+            self.open_holes.clear();
             imgproc::fill_holes(
                 &mut self.coarse_body,
                 cw as u32,
@@ -1333,8 +1384,9 @@ mod tests {
             F, 0, W,
             0, 0, F,
         ];
-        let mut top = Vec::new();
-        bridge_columns(&mut c, 3, 5, &mut top);
+        let (mut top, mut anchored) = (Vec::new(), Vec::new());
+        let zone = vec![1; 15];
+        bridge_columns(&mut c, &zone, 3, 5, true, &mut top, &mut anchored);
         #[rustfmt::skip]
         let want = vec![
             F, F, 0,
@@ -1344,6 +1396,47 @@ mod tests {
             0, 0, F,
         ];
         assert_eq!(c, want);
+    }
+
+    #[test]
+    fn a_bridge_needs_foreground_outside_the_shadow_zone_above_it() {
+        const F: u8 = MASK_ON;
+        const W: u8 = WEAK;
+        // Columns: a shin of the floor's hue under a thigh seen against the backdrop
+        // (row 0 is outside the zone); the shadowed floor of a side view between the far
+        // foot (row 2, in the zone, lit floor above it) and the near foot (row 4).
+        #[rustfmt::skip]
+        let cells = vec![
+            F, 0,
+            W, 0,
+            F, F,
+            W, W,
+            F, F,
+        ];
+        #[rustfmt::skip]
+        let zone = vec![
+            0, 0,
+            1, 1,
+            1, 1,
+            1, 1,
+            1, 1,
+        ];
+        let (mut top, mut anchored) = (Vec::new(), Vec::new());
+        let mut c = cells.clone();
+        bridge_columns(&mut c, &zone, 2, 5, false, &mut top, &mut anchored);
+        #[rustfmt::skip]
+        let want = vec![
+            F, 0,
+            BRIDGED, 0,
+            F, F,
+            BRIDGED, W,
+            F, F,
+        ];
+        assert_eq!(c, want);
+        // Without a calibration (zone everywhere) both columns are bridged.
+        let mut c = cells;
+        bridge_columns(&mut c, &[1; 10], 2, 5, true, &mut top, &mut anchored);
+        assert_eq!(c[2 * 3 + 1], BRIDGED);
     }
 
     #[test]
