@@ -247,6 +247,8 @@ pub fn refine_subpixel(
     };
     let k = opts.tangent_span.max(1);
     let steps = (opts.reach_px / opts.step_px).round() as i64;
+    let ends_on_reach = ((steps as f64) * opts.step_px - opts.reach_px).abs() < 1e-12;
+    let mut profile: Vec<f32> = Vec::with_capacity(2 * steps.max(0) as usize + 1);
     for i in 0..n {
         let t = scratch[(i + k) % n] - scratch[(i + n - k % n) % n];
         let len = t.length();
@@ -257,15 +259,21 @@ pub fn refine_subpixel(
         let normal = DVec2::new(t.y, -t.x) * orient; // outward
         let p = scratch[i];
         let at = |s: f64| bilinear(p + normal * s);
-        let inside = at(-opts.reach_px);
-        let outside = at(opts.reach_px);
+        // The profile's samples; its ends are the inside and outside values when the
+        // reach is a whole number of steps.
+        profile.clear();
+        profile.extend((-steps..=steps).map(|j| at(j as f64 * opts.step_px)));
+        let (inside, outside) = if ends_on_reach {
+            (profile[0], profile[profile.len() - 1])
+        } else {
+            (at(-opts.reach_px), at(opts.reach_px))
+        };
         let mut shift = DEFAULT_EDGE_OFFSET_PX;
         if inside - outside >= opts.min_contrast {
             // Area method: each unit sample along the normal contributes its fraction of
             // foreground; the fractions sum to the edge's distance from the profile start.
             let mut covered = 0.0;
-            for j in -steps..=steps {
-                let v = at(j as f64 * opts.step_px);
+            for &v in profile.iter() {
                 covered +=
                     (((v - outside) / (inside - outside)) as f64).clamp(0.0, 1.0) * opts.step_px;
             }
@@ -281,6 +289,32 @@ pub fn refine_subpixel(
 /// level of the edge, as a coverage-based ground truth does. Returns the pixels set.
 /// `scratch` holds the (row, x) crossings.
 pub fn fill_polygon(points: &[DVec2], mask: &mut Mask, scratch: &mut Vec<(u32, f32)>) -> u64 {
+    fill_polygon_rows(points, mask, scratch, |_, _, _| {})
+}
+
+/// [`fill_polygon`], also writing the filled spans into `spans` (the same as
+/// `spans.rebuild(mask)` after the fill, without reading the mask back).
+pub fn fill_polygon_spans(
+    points: &[DVec2],
+    mask: &mut Mask,
+    scratch: &mut Vec<(u32, f32)>,
+    spans: &mut query::MaskSpans,
+) -> u64 {
+    spans.begin(mask.width, mask.height);
+    let set = fill_polygon_rows(points, mask, scratch, |y, x0, x1| {
+        spans.push_span(y, x0, x1)
+    });
+    spans.finish();
+    set
+}
+
+/// [`fill_polygon`], calling `span(y, x0, x1)` for each filled span in raster order.
+fn fill_polygon_rows(
+    points: &[DVec2],
+    mask: &mut Mask,
+    scratch: &mut Vec<(u32, f32)>,
+    mut span: impl FnMut(u32, u32, u32),
+) -> u64 {
     mask.data.fill(0);
     let n = points.len();
     let (w, h) = (mask.width as i64, mask.height as i64);
@@ -317,6 +351,7 @@ pub fn fill_polygon(points: &[DVec2], mask: &mut Mask, scratch: &mut Vec<(u32, f
             let row = r as usize * w as usize;
             mask.data[row + x0 as usize..row + x1 as usize].fill(crate::imgproc::MASK_ON);
             set += (x1 - x0) as u64;
+            span(r, x0 as u32, x1 as u32);
         }
     }
     set
@@ -419,6 +454,26 @@ mod tests {
                 && !m.get(2, 5)
                 && !m.get(2, 1)
         );
+    }
+
+    #[test]
+    fn spans_written_by_the_fill_are_the_masks_own() {
+        // A star with concave notches and a part beyond the frame.
+        let pts: Vec<DVec2> = (0..40)
+            .map(|i| {
+                let a = i as f64 / 40.0 * std::f64::consts::TAU;
+                let r = if i % 2 == 0 { 30.0 } else { 12.5 };
+                DVec2::new(35.3 + r * a.cos(), 28.7 + r * a.sin())
+            })
+            .collect();
+        let mut m = Mask::new(60, 50);
+        let (mut s, mut spans) = (Vec::new(), query::MaskSpans::default());
+        let n = fill_polygon_spans(&pts, &mut m, &mut s, &mut spans);
+        let mut read_back = query::MaskSpans::default();
+        read_back.rebuild(&m);
+        assert_eq!(spans, read_back);
+        assert_eq!(n, m.area());
+        assert!(n > 500);
     }
 
     #[test]

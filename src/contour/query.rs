@@ -44,6 +44,41 @@ impl MaskSpans {
         self.row_start.push(self.spans.len() as u32);
     }
 
+    /// Starts an empty span list of a `width` x `height` mask, to be given its spans in
+    /// raster order with [`Self::push_span`] and closed with [`Self::finish`].
+    pub fn begin(&mut self, width: u32, height: u32) {
+        self.width = width;
+        self.height = height;
+        self.row_start.clear();
+        self.spans.clear();
+    }
+
+    /// Appends the span `[x0, x1)` of row `y` (rows in increasing order, spans of a row
+    /// left to right); a span touching the previous one of its row extends it.
+    pub fn push_span(&mut self, y: u32, x0: u32, x1: u32) {
+        let y = y as usize;
+        let row_open = self.row_start.len() == y + 1;
+        while self.row_start.len() <= y {
+            self.row_start.push(self.spans.len() as u32);
+        }
+        if row_open && self.spans.len() > self.row_start[y] as usize {
+            if let Some(last) = self.spans.last_mut() {
+                if last[1] == x0 {
+                    last[1] = x1;
+                    return;
+                }
+            }
+        }
+        self.spans.push([x0, x1]);
+    }
+
+    /// Closes the span list started by [`Self::begin`].
+    pub fn finish(&mut self) {
+        while self.row_start.len() <= self.height as usize {
+            self.row_start.push(self.spans.len() as u32);
+        }
+    }
+
     /// True when the pixel containing `p` is foreground.
     pub fn contains(&self, p: DVec2) -> bool {
         let (x, y) = (p.x.round(), p.y.round());
@@ -257,6 +292,13 @@ impl SilhouetteTarget {
         self.contour.points.clear();
         self.contour.points.extend_from_slice(&contour.points);
         self.spans.rebuild(mask);
+        self.grid.rebuild(&contour.points, GRID_CELL_PX);
+    }
+    /// Builds the contour queries; the spans are the caller's (e.g. from
+    /// [`super::fill_polygon_spans`]).
+    pub fn rebuild_contour(&mut self, contour: &Contour) {
+        self.contour.points.clear();
+        self.contour.points.extend_from_slice(&contour.points);
         self.grid.rebuild(&contour.points, GRID_CELL_PX);
     }
     pub fn new(mask: &Mask, contour: &Contour) -> Self {

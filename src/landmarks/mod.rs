@@ -603,10 +603,15 @@ impl SilhouetteExecutor {
             // the trunk) are opened again below, after the fitter's target took the
             // filled silhouette (its queries measure from the outer contour).
             state.hole_px.clear();
-            if !analysis.contour.is_empty() {
+            let spans_filled = !analysis.contour.is_empty();
+            if spans_filled {
                 collect_hole_background(state.model.open_holes(), mask, &mut state.hole_px);
-                analysis.stats.person_px =
-                    contour::fill_polygon(&analysis.contour.points, mask, &mut state.fill_scratch);
+                analysis.stats.person_px = contour::fill_polygon_spans(
+                    &analysis.contour.points,
+                    mask,
+                    &mut state.fill_scratch,
+                    &mut state.target.spans,
+                );
             }
             // Plane coordinates (front: z = 0, side: x = 0) and orientation.
             let cam = self.calib.camera(view);
@@ -634,7 +639,11 @@ impl SilhouetteExecutor {
                 analysis.contour.points.reverse();
                 state.normalized.reverse();
             }
-            state.target.rebuild(mask, &analysis.contour);
+            if spans_filled {
+                state.target.rebuild_contour(&analysis.contour);
+            } else {
+                state.target.rebuild(mask, &analysis.contour);
+            }
             for &i in &state.hole_px {
                 let v = &mut mask.data[i as usize];
                 analysis.stats.person_px -= (*v != 0) as u64;

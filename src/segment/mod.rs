@@ -292,7 +292,7 @@ pub struct BackgroundModel {
     /// contiguous for the per-frame test.
     coarse_model: ModelPlane,
     /// One coarse row of the frame, per channel.
-    row_rgb: [Vec<u8>; 3],
+    row_rgb: Vec<u32>,
     /// Shadow zone of every pixel (1 in the zone); see the module docs.
     zone: Vec<u8>,
     frames: u64,
@@ -322,7 +322,8 @@ pub struct BackgroundModel {
     /// Coarse runs of the holes left open in the last frame (see [`Self::open_holes`]).
     open_holes: Vec<imgproc::Run>,
     band_state: Vec<u8>,
-    band_px: Vec<u32>,
+    /// Pixels of the band, `[x, y]`.
+    band_px: Vec<[u32; 2]>,
     band_out: Vec<u8>,
 }
 
@@ -469,7 +470,7 @@ impl BackgroundModel {
             sum_sq: vec![0.0; n],
             px: vec![PixelModel::default(); n],
             coarse_model: ModelPlane::default(),
-            row_rgb: [Vec::new(), Vec::new(), Vec::new()],
+            row_rgb: Vec::new(),
             zone: vec![1; n],
             frames: 0,
             gain: 1.0,
@@ -807,12 +808,10 @@ impl BackgroundModel {
         let mut clock = PhaseClock::start();
 
         // 1. Coarse classification and exposure statistics: gather one coarse row into
-        // f32 channels, then a branch-free test the compiler vectorises.
+        // packed 32-bit colours, then a branch-free test the compiler vectorises.
         self.coarse.clear();
         self.coarse.resize(cw * ch, 0);
-        for v in &mut self.row_rgb {
-            v.resize(cw, 0);
-        }
+        self.row_rgb.resize(cw, 0);
         let (mut luma_sum, mut hi, mut lo) = (0u64, 0u64, 0u64);
         let o = self.opts;
         let ck2 = o.chroma_k * o.chroma_k;
@@ -831,23 +830,22 @@ impl BackgroundModel {
         for cy in 0..ch {
             let y = cy * COARSE as usize;
             let row = &raw[3 * y * w..3 * (y + 1) * w];
-            let [rr, rg, rb] = &mut self.row_rgb;
-            for (((r, g), b), p) in rr
-                .iter_mut()
-                .zip(rg.iter_mut())
-                .zip(rb.iter_mut())
-                .zip(row.chunks(3 * COARSE as usize))
-            {
-                if let [pr, pg, pb, ..] = *p {
-                    *r = pr;
-                    *g = pg;
-                    *b = pb;
-                }
+            let rgb = &mut self.row_rgb;
+            // Whole cells (two pixels, six bytes) as one 32-bit load each (red in the low
+            // byte), then an odd last pixel if any.
+            let cells = row.chunks_exact(3 * COARSE as usize);
+            let last = cells.remainder();
+            for (v, p) in rgb.iter_mut().zip(cells) {
+                *v = u32::from_le_bytes([p[0], p[1], p[2], p[3]]) & 0x00ff_ffff;
+            }
+            if let [pr, pg, pb, ..] = *last {
+                rgb[cw - 1] = u32::from_le_bytes([pr, pg, pb, 0]);
             }
             // Exposure statistics (integer, vectorised).
             let (mut sum, mut n_hi, mut n_lo) = (0u32, 0u32, 0u32);
-            for ((&r, &g), &b) in rr.iter().zip(rg.iter()).zip(rb.iter()) {
-                let l = (77 * r as u32 + 150 * g as u32 + 29 * b as u32) >> 8;
+            for &v in rgb.iter() {
+                let (r, g, b) = (v & 0xff, (v >> 8) & 0xff, v >> 16);
+                let l = (77 * r + 150 * g + 29 * b) >> 8;
                 sum += l;
                 n_hi += (l >= CLIP_HIGH_LUMA as u32) as u32;
                 n_lo += (l <= CLIP_LOW_LUMA as u32) as u32;
@@ -860,7 +858,7 @@ impl BackgroundModel {
             let out = &mut self.coarse[span.clone()];
             let it = out
                 .iter_mut()
-                .zip(rr.iter().zip(rg.iter()).zip(rb.iter()))
+                .zip(rgb.iter())
                 .zip(
                     m.er[span.clone()]
                         .iter()
@@ -868,7 +866,8 @@ impl BackgroundModel {
                         .zip(&m.eb[span.clone()]),
                 )
                 .zip(m.tau2[span.clone()].iter().zip(&m.zone[span]));
-            for (((o, ((&r, &g), &b)), ((&er, &eg), &eb)), (&tau2, &zone)) in it {
+            for (((o, &v), ((&er, &eg), &eb)), (&tau2, &zone)) in it {
+                let (r, g, b) = (v & 0xff, (v >> 8) & 0xff, v >> 16);
                 // Integer differences and dot products (exact), f32 for the products.
                 let (er, eg, eb) = (er as i32, eg as i32, eb as i32);
                 let (dr, dg, db) = (r as i32 - er, g as i32 - eg, b as i32 - eb);
@@ -1035,7 +1034,7 @@ impl BackgroundModel {
                                 } else {
                                     BAND_BG
                                 };
-                                self.band_px.push(i as u32);
+                                self.band_px.push([x as u32, y as u32]);
                             }
                         }
                     }
@@ -1045,30 +1044,35 @@ impl BackgroundModel {
         }
         // 3x3 majority over band pixels (outside the band: the upsampled label).
         self.band_out.clear();
-        for &i in &self.band_px {
-            let (x, y) = ((i as usize % w) as i64, (i as usize / w) as i64);
+        let (state, up) = (&self.band_state, &mask_out.data);
+        let vote = |j: usize| -> i32 {
+            let s = state[j];
+            ((s == BAND_FG) | ((s == BAND_NONE) & (up[j] != 0))) as i32
+        };
+        for &[x, y] in &self.band_px {
+            let (x, y) = (x as usize, y as usize);
             let mut votes = 0;
-            for ny in y - 1..=y + 1 {
-                for nx in x - 1..=x + 1 {
-                    if nx < 0 || ny < 0 || nx >= w as i64 || ny >= h as i64 {
-                        continue;
+            if x > 0 && y > 0 && x + 1 < w && y + 1 < h {
+                let c = y * w + x;
+                for row in [c - w, c, c + w] {
+                    votes += vote(row - 1) + vote(row) + vote(row + 1);
+                }
+            } else {
+                for ny in y.saturating_sub(1)..=(y + 1).min(h - 1) {
+                    for nx in x.saturating_sub(1)..=(x + 1).min(w - 1) {
+                        votes += vote(ny * w + nx);
                     }
-                    let j = ny as usize * w + nx as usize;
-                    votes += match self.band_state[j] {
-                        BAND_FG => 1,
-                        BAND_BG => 0,
-                        _ => (mask_out.data[j] != 0) as i32,
-                    };
                 }
             }
             self.band_out.push(if votes >= 5 { MASK_ON } else { 0 });
         }
         stats.band_px = self.band_px.len() as u32;
-        for (&i, &v) in self.band_px.iter().zip(&self.band_out) {
-            let old = &mut mask_out.data[i as usize];
+        for (&[x, y], &v) in self.band_px.iter().zip(&self.band_out) {
+            let i = y as usize * w + x as usize;
+            let old = &mut mask_out.data[i];
             upsampled_px = upsampled_px + (v != 0) as u64 - (*old != 0) as u64;
             *old = v;
-            self.band_state[i as usize] = BAND_NONE;
+            self.band_state[i] = BAND_NONE;
         }
 
         stats.phase_ms.band = clock.lap();
