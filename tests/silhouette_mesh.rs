@@ -156,12 +156,36 @@ fn render_mesh(mesh: &TriMesh, cam: &Camera, background: &RgbImage, seed: u64) -
                 rng ^= rng >> 7;
                 rng ^= rng << 17;
                 let noise = ((rng >> 40) as f64 / (1u64 << 24) as f64 - 0.5) * 6.0 * f;
-                let v = (1.0 - f) * px.0[ch] as f64 + col[ch] / cov * f + noise;
+                // A sensor pixel integrates light: body and backdrop mix in linear light,
+                // then the camera encodes the level (sRGB).
+                let lin = (1.0 - f) * to_linear(px.0[ch] as f64) + f * to_linear(col[ch] / cov);
+                let v = to_srgb(lin) + noise;
                 px.0[ch] = v.round().clamp(0.0, 255.0) as u8;
             }
         }
     }
     (img, mask)
+}
+
+/// sRGB level (0..255) to linear light (0..1).
+fn to_linear(v: f64) -> f64 {
+    let e = (v / 255.0).clamp(0.0, 1.0);
+    if e <= 0.04045 {
+        e / 12.92
+    } else {
+        ((e + 0.055) / 1.055).powf(2.4)
+    }
+}
+
+/// Linear light (0..1) to an sRGB level (0..255).
+fn to_srgb(l: f64) -> f64 {
+    let l = l.clamp(0.0, 1.0);
+    255.0
+        * if l <= 0.0031308 {
+            12.92 * l
+        } else {
+            1.055 * l.powf(1.0 / 2.4) - 0.055
+        }
 }
 
 /// The orthographic front silhouette (x, y) of the mesh on a fine grid.

@@ -238,13 +238,9 @@ pub fn refine_subpixel(
     };
     scratch.clear();
     scratch.extend_from_slice(points);
-    let bilinear = |p: DVec2| -> f32 {
-        let (x0, y0) = (fast_floor(p.x), fast_floor(p.y));
-        let (fx, fy) = ((p.x - x0 as f64) as f32, (p.y - y0 as f64) as f32);
-        let a = score(x0, y0) * (1.0 - fx) + score(x0 + 1, y0) * fx;
-        let b = score(x0, y0 + 1) * (1.0 - fx) + score(x0 + 1, y0 + 1) * fx;
-        a * (1.0 - fy) + b * fy
-    };
+    // The profile's pixels are scored once per point: a memo over the square of pixels
+    // a profile can reach (samples of one profile share half their pixels).
+    let mut memo = ScoreMemo::default();
     let k = opts.tangent_span.max(1);
     let steps = (opts.reach_px / opts.step_px).round() as i64;
     let ends_on_reach = ((steps as f64) * opts.step_px - opts.reach_px).abs() < 1e-12;
@@ -258,7 +254,8 @@ pub fn refine_subpixel(
         let t = t / len;
         let normal = DVec2::new(t.y, -t.x) * orient; // outward
         let p = scratch[i];
-        let at = |s: f64| bilinear(p + normal * s);
+        memo.start(p);
+        let mut at = |s: f64| memo.bilinear(p + normal * s, score);
         // The profile's samples; its ends are the inside and outside values when the
         // reach is a whole number of steps.
         profile.clear();
@@ -280,6 +277,70 @@ pub fn refine_subpixel(
             shift = -opts.reach_px - 0.5 * opts.step_px + covered;
         }
         points[i] = p + normal * shift.clamp(-MAX_EDGE_SHIFT_PX, MAX_EDGE_SHIFT_PX);
+    }
+}
+
+/// Half size of [`ScoreMemo`]'s square, pixels.
+const MEMO_R: i64 = 5;
+const MEMO_SIDE: i64 = 2 * MEMO_R + 2;
+
+/// Scores of the pixels about one contour point, computed on first use (see
+/// [`refine_subpixel`]); pixels beyond the square are scored directly.
+struct ScoreMemo {
+    x0: i64,
+    y0: i64,
+    /// Point counter; a value is valid where its stamp equals it.
+    stamp: u32,
+    stamps: [u32; (MEMO_SIDE * MEMO_SIDE) as usize],
+    values: [f32; (MEMO_SIDE * MEMO_SIDE) as usize],
+}
+
+impl Default for ScoreMemo {
+    fn default() -> Self {
+        ScoreMemo {
+            x0: 0,
+            y0: 0,
+            stamp: 0,
+            stamps: [0; (MEMO_SIDE * MEMO_SIDE) as usize],
+            values: [0.0; (MEMO_SIDE * MEMO_SIDE) as usize],
+        }
+    }
+}
+
+impl ScoreMemo {
+    /// Centres the memo on `p`, forgetting the previous point's values.
+    fn start(&mut self, p: DVec2) {
+        if self.stamp == u32::MAX {
+            self.stamps.fill(0);
+            self.stamp = 0;
+        }
+        self.stamp += 1;
+        self.x0 = fast_floor(p.x) - MEMO_R;
+        self.y0 = fast_floor(p.y) - MEMO_R;
+    }
+
+    #[inline]
+    fn get(&mut self, x: i64, y: i64, score: &dyn Fn(i64, i64) -> f32) -> f32 {
+        let (dx, dy) = (x - self.x0, y - self.y0);
+        if !(0..MEMO_SIDE).contains(&dx) || !(0..MEMO_SIDE).contains(&dy) {
+            return score(x, y);
+        }
+        let k = (dy * MEMO_SIDE + dx) as usize;
+        if self.stamps[k] != self.stamp {
+            self.stamps[k] = self.stamp;
+            self.values[k] = score(x, y);
+        }
+        self.values[k]
+    }
+
+    /// The score interpolated bilinearly at `p`.
+    #[inline]
+    fn bilinear(&mut self, p: DVec2, score: &dyn Fn(i64, i64) -> f32) -> f32 {
+        let (x0, y0) = (fast_floor(p.x), fast_floor(p.y));
+        let (fx, fy) = ((p.x - x0 as f64) as f32, (p.y - y0 as f64) as f32);
+        let a = self.get(x0, y0, score) * (1.0 - fx) + self.get(x0 + 1, y0, score) * fx;
+        let b = self.get(x0, y0 + 1, score) * (1.0 - fx) + self.get(x0 + 1, y0 + 1, score) * fx;
+        a * (1.0 - fy) + b * fy
     }
 }
 

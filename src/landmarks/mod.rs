@@ -195,6 +195,22 @@ pub enum Verdict {
 }
 
 impl Verdict {
+    /// True when the frame pair is not fitted under this verdict (all but being off the
+    /// mark, which the fit's perspective rays absorb).
+    pub fn blocks_fit(&self) -> bool {
+        match self {
+            Verdict::NoPerson
+            | Verdict::MultiplePeople
+            | Verdict::CutOff { .. }
+            | Verdict::ArmsTouchingTorso { .. }
+            | Verdict::LegsTogether
+            | Verdict::UnderExposed { .. }
+            | Verdict::OverExposed { .. }
+            | Verdict::BlendsIntoBackdrop { .. } => true,
+            Verdict::OffMark { .. } => false,
+        }
+    }
+
     /// A sentence for the screen.
     pub fn message(&self) -> String {
         match *self {
@@ -607,7 +623,7 @@ impl SilhouetteExecutor {
             if spans_filled {
                 collect_hole_background(state.model.open_holes(), mask, &mut state.hole_px);
                 analysis.stats.person_px = contour::fill_polygon_spans(
-                    &analysis.contour.points,
+                    &state.resampled,
                     mask,
                     &mut state.fill_scratch,
                     &mut state.target.spans,
@@ -805,8 +821,11 @@ fn trace_person(
             .map(|&(x, y)| DVec2::new(x as f64, y as f64)),
     );
     contour::resample_closed(&state.chain_f, CHAIN_SPACING_PX, &mut state.resampled);
-    let model = &state.model;
-    let score = |x: i64, y: i64| -> f32 { model.distance_clamped(frame, x, y) };
+    // Coverage is linear in light, not in the camera's encoded levels.
+    let Some(scorer) = state.model.edge_scorer(frame) else {
+        return;
+    };
+    let score = |x: i64, y: i64| -> f32 { scorer.score(x, y) };
     contour::refine_subpixel(
         &mut state.resampled,
         &score,

@@ -44,7 +44,8 @@
 //!
 //! # Conventions
 //! Pixels (column, row), origin at the top-left pixel; masks are 0/255, full resolution;
-//! colours are 8-bit sRGB values used as they are (no linearisation).
+//! colours are 8-bit sRGB values used as they are (no linearisation), except for the
+//! sub-pixel edge score ([`EdgeScorer`]), which compares colours in linear light.
 
 use crate::camera::Camera;
 use crate::imgproc::{self, RunComponents, MASK_ON};
@@ -82,6 +83,57 @@ const ZONE_BLOCK_PX: u32 = 4;
 /// other 15 bits.
 const ZONE_BIT: u16 = 0x8000;
 const TAU2_MAX: u16 = ZONE_BIT - 1;
+
+/// The sRGB decoding curve at the 256 8-bit levels (and a copy of the last, for
+/// interpolation), scaled to 0..255.
+fn srgb_to_linear() -> &'static [f32; 257] {
+    static LUT: std::sync::OnceLock<[f32; 257]> = std::sync::OnceLock::new();
+    LUT.get_or_init(|| {
+        std::array::from_fn(|k| {
+            let e = k.min(255) as f64 / 255.0;
+            let l = if e <= 0.04045 {
+                e / 12.92
+            } else {
+                ((e + 0.055) / 1.055).powf(2.4)
+            };
+            (255.0 * l) as f32
+        })
+    })
+}
+
+/// Colour distance between a frame and a background model in linear light (sRGB
+/// decoded, scaled to 0..255), at the pixel nearest (x, y) inside the frame: the
+/// sub-pixel edge score. The lens mixes person and backdrop in linear light, before the
+/// camera encodes its levels, so the coverage of an edge pixel is linear in this
+/// distance and not in the encoded one (which would put the edge of a dark person on a
+/// pale backdrop inside the person).
+pub struct EdgeScorer<'a> {
+    px: &'a [PixelModel],
+    raw: &'a [u8],
+    w: i64,
+    h: i64,
+    lut: &'static [f32; 257],
+}
+
+impl EdgeScorer<'_> {
+    #[inline]
+    pub fn score(&self, x: i64, y: i64) -> f32 {
+        let i = (y.clamp(0, self.h - 1) * self.w + x.clamp(0, self.w - 1)) as usize;
+        let (Some(m), Some(p)) = (self.px.get(i), self.raw.get(3 * i..3 * i + 3)) else {
+            return 0.0;
+        };
+        let mut dd = 0.0;
+        for c in 0..3 {
+            let a = self.lut[p[c] as usize];
+            // The model is kept in 1/256 levels: interpolate the curve.
+            let q = m.e_q8[c] as usize;
+            let (k, f) = ((q >> 8).min(255), (q & 255) as f32 * (1.0 / 256.0));
+            let b = self.lut[k] + f * (self.lut[k + 1] - self.lut[k]);
+            dd += (a - b) * (a - b);
+        }
+        dd.sqrt()
+    }
+}
 
 /// A binary mask, full frame resolution, 0 (background) or 255 (person).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
@@ -748,40 +800,20 @@ impl BackgroundModel {
         }
     }
 
-    /// Colour distance to the model of the pixel nearest (x, y) inside the frame (8-bit
-    /// units): the sub-pixel edge score. 0 when the frame does not fit the model.
-    #[inline]
-    pub fn distance_clamped(&self, frame: &RgbImage, x: i64, y: i64) -> f32 {
-        let (w, h) = (self.width as i64, self.height as i64);
-        let p = frame.as_raw();
-        if w == 0 || h == 0 || p.len() != self.px.len() * 3 {
-            return 0.0;
+    /// The sub-pixel edge score of `frame` against this model: colour distance in linear
+    /// light (see [`EdgeScorer`]). None when the frame does not fit the model.
+    pub fn edge_scorer<'a>(&'a self, frame: &'a RgbImage) -> Option<EdgeScorer<'a>> {
+        let raw = frame.as_raw();
+        if self.width == 0 || self.height == 0 || raw.len() != self.px.len() * 3 {
+            return None;
         }
-        let i = (y.clamp(0, h - 1) * w + x.clamp(0, w - 1)) as usize;
-        let e = self.px[i].color();
-        let dr = p[3 * i] as f32 - e[0];
-        let dg = p[3 * i + 1] as f32 - e[1];
-        let db = p[3 * i + 2] as f32 - e[2];
-        (dr * dr + dg * dg + db * db).sqrt()
-    }
-
-    /// Colour distance of a pixel to the model (8-bit units): the sub-pixel edge score.
-    #[inline]
-    pub fn distance(&self, frame: &RgbImage, x: u32, y: u32) -> f32 {
-        if x >= self.width
-            || y >= self.height
-            || frame.width() != self.width
-            || frame.height() != self.height
-        {
-            return 0.0;
-        }
-        let i = (y * self.width + x) as usize;
-        let p = frame.as_raw();
-        let e = self.px[i].color();
-        let dr = p[3 * i] as f32 - e[0];
-        let dg = p[3 * i + 1] as f32 - e[1];
-        let db = p[3 * i + 2] as f32 - e[2];
-        (dr * dr + dg * dg + db * db).sqrt()
+        Some(EdgeScorer {
+            px: &self.px,
+            raw,
+            w: self.width as i64,
+            h: self.height as i64,
+            lut: srgb_to_linear(),
+        })
     }
 
     /// Segments a frame into `mask_out` (resized to the frame): the largest person-sized
@@ -1441,6 +1473,50 @@ mod tests {
         let mut c = cells;
         bridge_columns(&mut c, &[1; 10], 2, 5, true, &mut top, &mut anchored);
         assert_eq!(c[2 * 3 + 1], BRIDGED);
+    }
+
+    #[test]
+    fn the_edge_score_is_linear_in_the_covered_fraction() {
+        let back = [200u8, 180, 160];
+        let mut m = BackgroundModel::new(4, 4, SegmentOptions::default());
+        m.learn(&RgbImage::from_pixel(4, 4, image::Rgb(back)))
+            .expect("learn");
+        // Pixels covering a black person by 0, 1/4, 1/2 and 1: the lens mixes in linear
+        // light, the camera encodes the mixture.
+        let lut = srgb_to_linear();
+        let encode = |l: f32| {
+            let l = (l / 255.0).clamp(0.0, 1.0);
+            let e = if l <= 0.0031308 {
+                12.92 * l
+            } else {
+                1.055 * l.powf(1.0 / 2.4) - 0.055
+            };
+            (255.0 * e).round() as u8
+        };
+        let mut frame = RgbImage::from_pixel(4, 4, image::Rgb(back));
+        for (x, f) in [0.0f32, 0.25, 0.5, 1.0].into_iter().enumerate() {
+            let px = back.map(|v| encode((1.0 - f) * lut[v as usize]));
+            frame.put_pixel(x as u32, 0, image::Rgb(px));
+        }
+        let s = m.edge_scorer(&frame).expect("same size");
+        let full = s.score(3, 0);
+        assert!(full > 100.0, "{full}");
+        assert!(s.score(0, 0) < 1.0);
+        for (x, f) in [(1, 0.25f32), (2, 0.5)] {
+            let got = s.score(x, 0) / full;
+            assert!((got - f).abs() < 0.02, "coverage {f}: score fraction {got}");
+        }
+        // In encoded levels the half-covered pixel would read as much less than half.
+        let enc = |x: u32| {
+            let p = frame.get_pixel(x, 0).0;
+            (0..3)
+                .map(|c| (p[c] as f32 - back[c] as f32).powi(2))
+                .sum::<f32>()
+                .sqrt()
+        };
+        assert!(enc(2) / enc(3) < 0.35, "{}", enc(2) / enc(3));
+        // A frame of another size has no score.
+        assert!(m.edge_scorer(&RgbImage::new(3, 4)).is_none());
     }
 
     #[test]

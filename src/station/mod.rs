@@ -207,7 +207,7 @@ impl StationProcessor {
         self.counts.with_subject += 1;
         let blocking: Vec<String> = verdicts
             .iter()
-            .filter(|v| blocks_fit(v))
+            .filter(|v| v.blocks_fit())
             .map(|v| v.message())
             .collect();
         if !blocking.is_empty() {
@@ -287,7 +287,7 @@ impl StationProcessor {
         s.messages.extend(
             verdicts
                 .iter()
-                .filter(|v| !blocks_fit(v) && !matches!(v, Verdict::NoPerson))
+                .filter(|v| !v.blocks_fit() && !matches!(v, Verdict::NoPerson))
                 .map(|v| v.message()),
         );
         s
@@ -338,21 +338,6 @@ impl FrameProcessor for StationProcessor {
         self.last_fit = None;
         self.last_landmarks.clear();
     }
-}
-
-/// Verdicts under which the frame is not fitted.
-fn blocks_fit(v: &Verdict) -> bool {
-    matches!(
-        v,
-        Verdict::NoPerson
-            | Verdict::MultiplePeople
-            | Verdict::CutOff { .. }
-            | Verdict::ArmsTouchingTorso { .. }
-            | Verdict::LegsTogether
-            | Verdict::UnderExposed { .. }
-            | Verdict::OverExposed { .. }
-            | Verdict::BlendsIntoBackdrop { .. }
-    )
 }
 
 /// What the fitter needs from the landmarks.
