@@ -19,7 +19,10 @@
 //!
 //! Legs in trousers of the floor's own hue look like their own cast shadow where they
 //! cross the floor's image: shadow-like cells between foreground cells of the same
-//! column are bridged into the person (`bridge_columns`).
+//! column are bridged into the person (`bridge_columns`), when the column's foreground
+//! above them reaches outside the shadow zone (a leg hangs from a thigh seen against the
+//! backdrop; the shadowed floor between a side view's far and near foot has only the
+//! far foot, inside the zone, above it).
 //! The zone flag rides in the top bit of the pixel's packed noise radius. Everything is evaluated
 //! without per-pixel division: with `d = I - E`, `|I - alpha E|^2 |E|^2 = |d|^2 |E|^2 -
 //! (d.E)^2` and `alpha - 1 = d.E / |E|^2`.
@@ -279,7 +282,7 @@ pub struct PixelBox {
 /// What the segmentation saw in one frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct SegmentStats {
-    /// Foreground pixels of the output mask (the person, holes filled).
+    /// Foreground pixels of the output mask (the person; holes filled but for the open ones).
     pub person_px: u64,
     /// Components (coarse grid) above `min_person_fraction` of the frame.
     pub large_components: u32,
@@ -817,7 +820,7 @@ impl BackgroundModel {
     }
 
     /// Segments a frame into `mask_out` (resized to the frame): the largest person-sized
-    /// component, holes filled.
+    /// component, its holes filled except those left open ([`Self::open_holes`]).
     ///
     /// # Errors
     /// `NotReady` before any empty frame was learned; `FrameSize` / `Empty`.
