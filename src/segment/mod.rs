@@ -126,10 +126,10 @@ impl EdgeScorer<'_> {
             return 0.0;
         };
         let mut dd = 0.0;
-        for c in 0..3 {
-            let a = self.lut[p[c] as usize];
+        for (&v, &q) in p.iter().zip(&m.e_q8) {
+            let a = self.lut[v as usize];
             // The model is kept in 1/256 levels: interpolate the curve.
-            let q = m.e_q8[c] as usize;
+            let q = q as usize;
             let (k, f) = ((q >> 8).min(255), (q & 255) as f32 * (1.0 / 256.0));
             let b = self.lut[k] + f * (self.lut[k + 1] - self.lut[k]);
             dd += (a - b) * (a - b);
