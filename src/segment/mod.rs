@@ -138,6 +138,21 @@ impl EdgeScorer<'_> {
     }
 }
 
+/// Asks the CPU to bring `v[i]`'s cache line in (no effect elsewhere than x86-64, or
+/// past the slice's end).
+#[inline(always)]
+fn prefetch<T>(v: &[T], i: usize) {
+    #[cfg(target_arch = "x86_64")]
+    if let Some(e) = v.get(i) {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        // SAFETY: SSE is part of the x86-64 baseline, and a prefetch is a hint: it reads
+        // nothing into the program and never faults (the address is a live element).
+        unsafe { _mm_prefetch::<_MM_HINT_T0>((e as *const T).cast::<i8>()) };
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = (v, i);
+}
+
 /// A binary mask, full frame resolution, 0 (background) or 255 (person).
 #[derive(Debug, Clone, PartialEq, Eq, Default)]
 pub struct Mask {
@@ -379,6 +394,8 @@ pub struct BackgroundModel {
     band_state: Vec<u8>,
     /// Pixels of the band, `[x, y]`.
     band_px: Vec<[u32; 2]>,
+    /// Cells of the band, `[cx, cy]`.
+    band_cells: Vec<[u32; 2]>,
     band_out: Vec<u8>,
 }
 
@@ -498,6 +515,38 @@ fn bridge_columns(
     }
 }
 
+/// The colours of every second pixel of an RGB row, packed red in the low byte
+/// (`out[k]` is pixel `2k`); `out` holds `ceil(pixels / 2)` values.
+const _: () = assert!(COARSE == 2, "gather_coarse_row takes every second pixel");
+fn gather_coarse_row(row: &[u8], rgb: &mut [u32]) {
+    let cw = rgb.len();
+    // Four cells (24 bytes) from three 64-bit loads.
+    let quads = row.chunks_exact(24);
+    let done = (4 * quads.len()).min(cw);
+    for (v, q) in rgb.chunks_exact_mut(4).zip(quads) {
+        let word = |k: usize| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&q[8 * k..8 * k + 8]);
+            u64::from_le_bytes(b)
+        };
+        let (a, b, c) = (word(0), word(1), word(2));
+        const C: u64 = 0x00ff_ffff;
+        v[0] = (a & C) as u32;
+        v[1] = (((a >> 48) | (b << 16)) & C) as u32;
+        v[2] = ((b >> 32) & C) as u32;
+        v[3] = ((c >> 16) & C) as u32;
+    }
+    // The rest cell by cell, then an odd last pixel if any.
+    let cells = row[(6 * done).min(row.len())..].chunks_exact(6);
+    let last = cells.remainder();
+    for (v, p) in rgb[done..].iter_mut().zip(cells) {
+        *v = u32::from_le_bytes([p[0], p[1], p[2], 0]);
+    }
+    if let ([pr, pg, pb, ..], Some(v)) = (last, rgb.last_mut()) {
+        *v = u32::from_le_bytes([*pr, *pg, *pb, 0]);
+    }
+}
+
 /// The person's box grown by [`ADAPT_MARGIN_PX`] as `(x0, y0, x1, y1)`: pixels the
 /// backdrop statistics (adaptation, exposure gain) keep away from.
 fn keep_out_box(b: PixelBox) -> (usize, usize, usize, usize) {
@@ -546,6 +595,7 @@ impl BackgroundModel {
             open_holes: Vec::new(),
             band_state: vec![BAND_NONE; n],
             band_px: Vec::new(),
+            band_cells: Vec::new(),
             band_out: Vec::new(),
         }
     }
@@ -866,16 +916,7 @@ impl BackgroundModel {
             let y = cy * COARSE as usize;
             let row = &raw[3 * y * w..3 * (y + 1) * w];
             let rgb = &mut self.row_rgb;
-            // Whole cells (two pixels, six bytes) as one 32-bit load each (red in the low
-            // byte), then an odd last pixel if any.
-            let cells = row.chunks_exact(3 * COARSE as usize);
-            let last = cells.remainder();
-            for (v, p) in rgb.iter_mut().zip(cells) {
-                *v = u32::from_le_bytes([p[0], p[1], p[2], p[3]]) & 0x00ff_ffff;
-            }
-            if let [pr, pg, pb, ..] = *last {
-                rgb[cw - 1] = u32::from_le_bytes([pr, pg, pb, 0]);
-            }
+            gather_coarse_row(row, rgb);
             // Exposure statistics (integer, vectorised).
             let (mut sum, mut n_hi, mut n_lo) = (0u32, 0u32, 0u32);
             for &v in rgb.iter() {
@@ -1036,7 +1077,11 @@ impl BackgroundModel {
         imgproc::erode3x3(&self.coarse_body, cw, ch, &mut self.eroded, &mut self.tmp);
         imgproc::dilate3x3(&self.coarse_body, cw, ch, &mut self.dilated, &mut self.tmp);
         self.band_px.clear();
+        self.band_cells.clear();
         const SKIP_CHUNK: usize = 16;
+        // The band's cells first (no model access), then their pixels: the model rows of
+        // the cell a few places ahead are prefetched, as the band's cells are scattered
+        // along the person's outline and every one of them misses the cache.
         for cy in 0..ch {
             let (er_row, di_row) = (
                 &self.eroded[cy * cw..(cy + 1) * cw],
@@ -1055,26 +1100,38 @@ impl BackgroundModel {
                     }
                 }
                 if er_row[cx] != di_row[cx] {
-                    for dy in 0..COARSE as usize {
-                        for dx in 0..COARSE as usize {
-                            let (x, y) = (cx * COARSE as usize + dx, cy * COARSE as usize + dy);
-                            if x < w && y < h {
-                                let i = y * w + x;
-                                let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
-                                let bridged = self.coarse[cy * cw + cx] == BRIDGED;
-                                self.band_state[i] = if self.is_foreground(i, p)
-                                    || (bridged && self.is_changed(i, p))
-                                {
-                                    BAND_FG
-                                } else {
-                                    BAND_BG
-                                };
-                                self.band_px.push([x as u32, y as u32]);
-                            }
-                        }
-                    }
+                    self.band_cells.push([cx as u32, cy as u32]);
                 }
                 cx += 1;
+            }
+        }
+        const AHEAD: usize = 8;
+        for k in 0..self.band_cells.len() {
+            if let Some(&[ax, ay]) = self.band_cells.get(k + AHEAD) {
+                let i = (ay * COARSE) as usize * w + (ax * COARSE) as usize;
+                prefetch(&self.px, i);
+                prefetch(&self.px, i + w);
+                prefetch(raw, 3 * i);
+                prefetch(raw, 3 * (i + w));
+            }
+            let [cx, cy] = self.band_cells[k];
+            let (cx, cy) = (cx as usize, cy as usize);
+            let bridged = self.coarse[cy * cw + cx] == BRIDGED;
+            for dy in 0..COARSE as usize {
+                for dx in 0..COARSE as usize {
+                    let (x, y) = (cx * COARSE as usize + dx, cy * COARSE as usize + dy);
+                    if x < w && y < h {
+                        let i = y * w + x;
+                        let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                        self.band_state[i] =
+                            if self.is_foreground(i, p) || (bridged && self.is_changed(i, p)) {
+                                BAND_FG
+                            } else {
+                                BAND_BG
+                            };
+                        self.band_px.push([x as u32, y as u32]);
+                    }
+                }
             }
         }
         // 3x3 majority over band pixels (outside the band: the upsampled label).
@@ -1520,6 +1577,22 @@ mod tests {
         assert!(enc(2) / enc(3) < 0.35, "{}", enc(2) / enc(3));
         // A frame of another size has no score.
         assert!(m.edge_scorer(&RgbImage::new(3, 4)).is_none());
+    }
+
+    #[test]
+    fn coarse_rows_are_gathered_whole_and_odd() {
+        for w in [1usize, 2, 3, 7, 8, 9, 13, 16, 17, 33] {
+            let row: Vec<u8> = (0..3 * w).map(|k| (k * 37 % 251) as u8).collect();
+            let mut got = vec![0u32; w.div_ceil(2)];
+            gather_coarse_row(&row, &mut got);
+            let want: Vec<u32> = (0..w.div_ceil(2))
+                .map(|k| {
+                    let i = 6 * k;
+                    u32::from_le_bytes([row[i], row[i + 1], row[i + 2], 0])
+                })
+                .collect();
+            assert_eq!(got, want, "width {w}");
+        }
     }
 
     #[test]
