@@ -614,8 +614,8 @@ impl SilhouetteExecutor {
                 &self.opts,
                 &mut analysis.contour,
             );
-            // The mask from the sub-pixel contour: its border on the edge's 50 % level.
-            // The holes the segmentation left open (the backdrop seen between an arm and
+            // The mask from the sub-pixel contour (the refined chain, before its last
+            // resampling): its border on the edge's 50 % level. The holes the segmentation left open (the backdrop seen between an arm and
             // the trunk) are opened again below, after the fitter's target took the
             // filled silhouette (its queries measure from the outer contour).
             state.hole_px.clear();
@@ -751,7 +751,6 @@ fn view_verdicts(stats: &SegmentStats, view: View, o: &VerdictOptions, out: &mut
     }
 }
 
-/// Traces the person's outer contour, refines it to sub-pixel and resamples it.
 /// The background pixels of `mask` in the coarse cells of the open holes `holes` and one
 /// cell around them (the hole's border was re-tested at full resolution there), as
 /// row-major indices into `out` (cleared first).
@@ -776,6 +775,7 @@ fn collect_hole_background(holes: &[crate::imgproc::Run], mask: &Mask, out: &mut
     }
 }
 
+/// Traces the person's outer contour, refines it to sub-pixel and resamples it.
 fn trace_person(
     state: &mut ViewState,
     frame: &RgbImage,
