@@ -7,6 +7,7 @@
 //! pixel.
 
 use super::Contour;
+use crate::imgproc::find_run_edge;
 use crate::segment::Mask;
 use glam::DVec2;
 
@@ -89,31 +90,6 @@ impl MaskSpans {
         let (a, b) = (self.row_start[y] as usize, self.row_start[y + 1] as usize);
         self.spans[a..b].iter().any(|s| s[0] <= x && x < s[1])
     }
-}
-
-/// First index at or after `from` whose byte is non-zero (`nonzero`) or zero, else
-/// `row.len()`. Skips eight bytes at a time over uniform stretches (mask rows are long
-/// runs of 0 or 255).
-#[inline]
-pub fn find_run_edge(row: &[u8], from: usize, nonzero: bool) -> usize {
-    const WORD: usize = 8;
-    let skip = if nonzero { 0u64 } else { u64::MAX };
-    let mut x = from;
-    while x < row.len() {
-        if x + WORD <= row.len() {
-            let mut b = [0u8; WORD];
-            b.copy_from_slice(&row[x..x + WORD]);
-            if u64::from_ne_bytes(b) == skip {
-                x += WORD;
-                continue;
-            }
-        }
-        if (row[x] != 0) == nonzero {
-            return x;
-        }
-        x += 1;
-    }
-    row.len()
 }
 
 /// The nearest point of a contour to a query point.

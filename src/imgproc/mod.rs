@@ -17,7 +17,9 @@ pub mod runs;
 pub use canny::{canny, CannyScratch};
 pub use morph::{dilate3x3, erode3x3, majority3x3};
 pub use remap::{PointUndistorter, RemapTable};
-pub use runs::{fill_holes, fill_holes_selective, write_component, Component, Run, RunComponents};
+pub use runs::{
+    fill_holes, fill_holes_selective, find_run_edge, write_component, Component, Run, RunComponents,
+};
 
 /// Value of a foreground pixel in a binary mask.
 pub const MASK_ON: u8 = 255;

@@ -53,6 +53,31 @@ pub struct RunComponents {
     root_to_comp: Vec<u32>,
 }
 
+/// First index at or after `from` whose byte is non-zero (`nonzero`) or zero, else
+/// `row.len()`. Skips eight bytes at a time over uniform stretches (mask rows are long
+/// runs of 0 or 255).
+#[inline]
+pub fn find_run_edge(row: &[u8], from: usize, nonzero: bool) -> usize {
+    const WORD: usize = 8;
+    let skip = if nonzero { 0u64 } else { u64::MAX };
+    let mut x = from;
+    while x < row.len() {
+        if x + WORD <= row.len() {
+            let mut b = [0u8; WORD];
+            b.copy_from_slice(&row[x..x + WORD]);
+            if u64::from_ne_bytes(b) == skip {
+                x += WORD;
+                continue;
+            }
+        }
+        if (row[x] != 0) == nonzero {
+            return x;
+        }
+        x += 1;
+    }
+    row.len()
+}
+
 fn find(parent: &mut [u32], mut a: u32) -> u32 {
     while parent[a as usize] != a {
         let p = parent[parent[a as usize] as usize];
@@ -84,14 +109,11 @@ impl RunComponents {
             let row = &data[y * w..(y + 1) * w];
             let mut x = 0;
             while x < w {
-                if (row[x] != 0) != on {
-                    x += 1;
-                    continue;
+                let x0 = find_run_edge(row, x, on);
+                if x0 >= w {
+                    break;
                 }
-                let x0 = x;
-                while x < w && (row[x] != 0) == on {
-                    x += 1;
-                }
+                x = find_run_edge(row, x0, !on);
                 self.runs.push(Run {
                     y: y as u32,
                     x0: x0 as u32,
