@@ -1202,25 +1202,38 @@ impl BackgroundModel {
         let raw = frame.as_raw();
         let phase = self.frames % ADAPT_ROW_STRIDE;
         let keep_out = person.map(keep_out_box);
+        let cw = w.div_ceil(COARSE as usize);
         let mut y = phase as usize;
         while y < self.height as usize {
-            for x in 0..w {
-                if let Some((x0, y0, x1, y1)) = keep_out {
-                    if x >= x0 && x < x1 && y >= y0 && y < y1 {
-                        continue;
-                    }
-                }
+            // The row's spans outside the person's box.
+            let (a, b) = match keep_out {
+                Some((x0, y0, x1, y1)) if y >= y0 && y < y1 => ((0, x0.min(w)), (x1.min(w), w)),
+                _ => ((0, w), (w, w)),
+            };
+            let coarse_row = y
+                .is_multiple_of(COARSE as usize)
+                .then(|| (y / COARSE as usize) * cw);
+            for x in (a.0..a.1).chain(b.0..b.1) {
                 let i = y * w + x;
                 let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
                 if self.is_foreground(i, p) {
                     continue; // someone else, or a change too large to learn silently
                 }
                 // The raw colour: the model follows a lasting drift of the light, so the
-                // gain only has the frame's flicker about it to explain.
+                // gain only has the frame's flicker about it to explain. The noise radius
+                // and the zone stay.
                 let e = self.px[i].color();
-                let m = [0, 1, 2].map(|c| e[c] + rate * (p[c] as f32 - e[c]));
-                let t = self.px[i].radius2();
-                self.set_model_xy(i, x, y, m, t);
+                let m = [0, 1, 2].map(|c| (e[c] + rate * (p[c] as f32 - e[c])).clamp(1.0, 255.0));
+                self.px[i].e_q8 = m.map(|v| (v * COLOR_Q + 0.5) as u16);
+                if let Some(row) = coarse_row.filter(|_| x.is_multiple_of(COARSE as usize)) {
+                    let k = row + x / COARSE as usize;
+                    let c = &mut self.coarse_model;
+                    if k < c.er.len() {
+                        c.er[k] = (m[0] + 0.5) as u8;
+                        c.eg[k] = (m[1] + 0.5) as u8;
+                        c.eb[k] = (m[2] + 0.5) as u8;
+                    }
+                }
             }
             y += ADAPT_ROW_STRIDE as usize;
         }
