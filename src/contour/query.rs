@@ -265,10 +265,8 @@ pub struct SilhouetteTarget {
 impl SilhouetteTarget {
     /// Builds the queries for a mask and its contour.
     pub fn rebuild(&mut self, mask: &Mask, contour: &Contour) {
-        self.contour.points.clear();
-        self.contour.points.extend_from_slice(&contour.points);
         self.spans.rebuild(mask);
-        self.grid.rebuild(&contour.points, GRID_CELL_PX);
+        self.rebuild_contour(contour);
     }
     /// Builds the contour queries; the spans are the caller's (e.g. from
     /// [`super::fill_polygon_spans`]).

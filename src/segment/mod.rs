@@ -438,6 +438,16 @@ struct ModelPlane {
     zone: Vec<u8>,
 }
 
+impl ModelPlane {
+    /// Sets the colour of coarse cell `k` (in range) from a model colour in 8-bit units.
+    #[inline]
+    fn set_colour(&mut self, k: usize, m: [f32; 3]) {
+        self.er[k] = (m[0] + 0.5) as u8;
+        self.eg[k] = (m[1] + 0.5) as u8;
+        self.eb[k] = (m[2] + 0.5) as u8;
+    }
+}
+
 /// Coarse labels of the classification: changed but explained as shadow or exposure
 /// change, and such a cell bridged into the person (see [`bridge_columns`]). Foreground is
 /// [`MASK_ON`], unchanged 0.
@@ -698,9 +708,7 @@ impl BackgroundModel {
             let k = (y / COARSE as usize) * cw + x / COARSE as usize;
             let c = &mut self.coarse_model;
             if k < c.er.len() {
-                c.er[k] = (m[0] + 0.5) as u8;
-                c.eg[k] = (m[1] + 0.5) as u8;
-                c.eb[k] = (m[2] + 0.5) as u8;
+                c.set_colour(k, m);
                 c.tau2[k] = tau2_q & TAU2_MAX;
                 c.zone[k] = zone;
             }
@@ -1227,11 +1235,8 @@ impl BackgroundModel {
                 self.px[i].e_q8 = m.map(|v| (v * COLOR_Q + 0.5) as u16);
                 if let Some(row) = coarse_row.filter(|_| x.is_multiple_of(COARSE as usize)) {
                     let k = row + x / COARSE as usize;
-                    let c = &mut self.coarse_model;
-                    if k < c.er.len() {
-                        c.er[k] = (m[0] + 0.5) as u8;
-                        c.eg[k] = (m[1] + 0.5) as u8;
-                        c.eb[k] = (m[2] + 0.5) as u8;
+                    if k < self.coarse_model.er.len() {
+                        self.coarse_model.set_colour(k, m);
                     }
                 }
             }
