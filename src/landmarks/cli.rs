@@ -4,6 +4,7 @@
 //!
 //! Station points are printed in metres, pixels in each frame's distorted pixels.
 
+use super::crotch::CrotchProfile;
 use super::{
     ContourPart, LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Status,
     ViewAnalysis,
@@ -64,6 +65,12 @@ pub fn run(args: LandmarksArgs) -> anyhow::Result<()> {
     };
     let mut opts = SilhouetteOptions::default();
     opts.segment.adapt_rate = 0.0;
+    match crate::body::ShapeLibrary::shared() {
+        Ok(lib) => opts.crotch_profile = CrotchProfile::from_template(lib.template()),
+        Err(e) => eprintln!(
+            "warning: no shape library ({e}): the crotch is the leg gap's apex lifted onto the body axis"
+        ),
+    }
     let mut ex = SilhouetteExecutor::new(&calib, opts);
     ex.learn_background(&front_bg, &side_bg)?;
     let res = ex.process(&front, &side)?;

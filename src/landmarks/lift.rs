@@ -12,6 +12,7 @@
 //! so one table of the side axis on x = 0 serves every x0.
 
 use super::analysis::{self, FrontFeatures, SideFeatures};
+use super::crotch::CrotchProfile;
 use super::{LandmarkName, NamedPoint, SilhouetteOptions, SilhouetteResult, Verdict};
 use crate::camera::{Camera, StationCalibration};
 use glam::{DVec2, DVec3};
@@ -199,6 +200,28 @@ pub fn lift_front_ray(front: &Camera, n: DVec2, axis: &SideAxis, iterations: usi
     p
 }
 
+/// The crotch above the leg gap's apex `apex` (lifted onto the body axis): the front
+/// ray through the apex grazes the trough under the crotch ([`CrotchProfile`]), so it
+/// passes the perineum's depth below the perineum, by the trough's drop for the ray's
+/// slope. Unchanged without a stature or when the camera is level with the body.
+fn crotch_above_apex(
+    front: &Camera,
+    apex: DVec3,
+    profile: &CrotchProfile,
+    stature: f64,
+    axis: &SideAxis,
+) -> DVec3 {
+    let c = front.center_in_station();
+    let dz = c.z - apex.z;
+    if stature <= 0.0 || dz.abs() < 1e-6 {
+        return apex;
+    }
+    let slope = (c.y - apex.y) / dz;
+    let y = apex.y - profile.apparent_offset(slope, stature);
+    let z = axis.at_plane(y, apex.x).unwrap_or(apex.z);
+    DVec3::new(apex.x, y, z)
+}
+
 /// Normalised coordinates of the front ray through a point of the front plane z = 0.
 fn plane_point_to_normalized(front: &Camera, p: DVec2) -> Option<DVec2> {
     let c = front.camera_from_station.apply(DVec3::new(p.x, p.y, 0.0));
@@ -243,7 +266,11 @@ pub fn lift_all(
         (AcromionRight, ff.acromion_right),
     ] {
         if let Some(i) = idx {
-            pts.push((name, lift_idx(i)));
+            let mut p = lift_idx(i);
+            if let (Crotch, Some(profile)) = (name, &opts.crotch_profile) {
+                p = crotch_above_apex(front, p, profile, stature, &axis);
+            }
+            pts.push((name, p));
         }
     }
     let crotch = pts.iter().find(|p| p.0 == Crotch).map(|p| p.1);

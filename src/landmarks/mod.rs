@@ -8,6 +8,9 @@
 //! the station frame with perspective rays (`lift`): the front ray of a landmark is cut
 //! by the plane z = z_side(height), where z_side is the side contour's axis at that
 //! height (computed on the plane x = the landmark's x), iterated so both views agree.
+//! The crotch is the exception: the front ray through the leg gap's apex grazes the
+//! trough under the crotch and passes the body axis below the perineum, so it is raised
+//! by the template's trough for that ray's slope (`crotch`).
 //!
 //! # Conventions
 //! - Station frame (`shared/spec/formats.md`): metres, +Y up, +Z toward the front camera,
@@ -21,6 +24,7 @@
 //! - "Left"/"right" are the subject's.
 
 pub mod cli;
+pub mod crotch;
 pub mod lift;
 pub mod phantom;
 pub mod zones;
@@ -302,6 +306,12 @@ pub struct SilhouetteOptions {
     pub contour_spacing_px: f64,
     /// Lifting iterations between the two views.
     pub lift_iterations: usize,
+    /// The template's trough under the crotch ([`crotch::CrotchProfile`]): with it the
+    /// crotch is placed where the front camera's grazing ray says the perineum is, not
+    /// where that ray crosses the body axis (which is below it). `None`: the apex is
+    /// lifted like any landmark. The station and the `landmarks` command set it from
+    /// the shape library's template.
+    pub crotch_profile: Option<crotch::CrotchProfile>,
 }
 
 impl Default for SilhouetteOptions {
@@ -312,6 +322,7 @@ impl Default for SilhouetteOptions {
             subpixel: SubpixelOptions::default(),
             contour_spacing_px: 2.0,
             lift_iterations: 3,
+            crotch_profile: None,
         }
     }
 }

@@ -15,6 +15,7 @@ use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
 use crate::fit::correspond::MaskRef;
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
+use crate::landmarks::crotch::CrotchProfile;
 use crate::landmarks::{
     LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict, ViewAnalysis,
 };
@@ -92,8 +93,11 @@ impl StationProcessor {
     pub fn new(
         calib: StationCalibration,
         library: Arc<ShapeLibrary>,
-        opts: StationOptions,
+        mut opts: StationOptions,
     ) -> Result<Self, crate::fit::FitError> {
+        if opts.silhouette.crotch_profile.is_none() {
+            opts.silhouette.crotch_profile = CrotchProfile::from_template(library.template());
+        }
         let fitter = Fitter::new(library, opts.fit.clone())?;
         Ok(StationProcessor {
             silhouettes: SilhouetteExecutor::new(&calib, opts.silhouette),
