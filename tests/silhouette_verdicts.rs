@@ -5,8 +5,12 @@ mod silhouette_common;
 
 use fitstation::camera::View;
 use fitstation::landmarks::phantom::{Phantom, PhantomParams, SceneParams};
-use fitstation::landmarks::{FrameEdge, SilhouetteResult, Verdict};
+use fitstation::landmarks::{
+    FrameEdge, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict,
+};
+use fitstation::segment::Mask;
 use glam::DVec3;
+use image::RgbImage;
 use silhouette_common::*;
 
 fn run(people: &[Phantom], scene: SceneParams) -> SilhouetteResult {
@@ -278,4 +282,76 @@ fn a_trunk_side_of_the_backdrop_colour_is_reported_and_a_whole_trunk_is_not() {
         r.landmarks.trunk_asymmetry,
         r.landmarks.verdicts
     );
+}
+
+/// `img` with every pixel outside `person` (all of them without one) painted `level`
+/// plus a little sensor noise: a white or black studio backdrop.
+fn paint_backdrop(img: &RgbImage, person: Option<&Mask>, level: u8, seed: u64) -> RgbImage {
+    let mut out = img.clone();
+    let mut state = seed.wrapping_mul(0x9E37_79B9_7F4A_7C15) | 1;
+    for (x, y, p) in out.enumerate_pixels_mut() {
+        if person.is_some_and(|m| m.get(x as i64, y as i64)) {
+            continue;
+        }
+        for c in p.0.iter_mut() {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let noise = (state % 7) as i32 - 3;
+            *c = (level as i32 + noise).clamp(0, 255) as u8;
+        }
+    }
+    out
+}
+
+/// The exposure verdicts compare a frame with the learned empty scene: a backdrop that is
+/// itself white (mostly clipped) or black (mostly crushed) is the scene, not a fault, and
+/// the subject in front of it is fitted; the same white scene with its light at 15% is
+/// under-exposed.
+#[test]
+fn a_white_or_black_backdrop_is_not_an_exposure_fault() {
+    let exposure = |v: &Verdict| {
+        matches!(
+            v,
+            Verdict::UnderExposed { .. } | Verdict::OverExposed { .. }
+        )
+    };
+    for level in [255u8, 0] {
+        let mut ex = SilhouetteExecutor::new(&rig().calib, SilhouetteOptions::default());
+        for k in 0..2u64 {
+            let e = empty_cached(k as usize);
+            ex.learn_background(
+                &paint_backdrop(&e.front, None, level, k),
+                &paint_backdrop(&e.side, None, level, k + 7),
+            )
+            .expect("learn");
+        }
+        let p = render(&[subject()], scene(31));
+        let front = paint_backdrop(&p.front, Some(&p.front_truth), level, 40);
+        let side = paint_backdrop(&p.side, Some(&p.side_truth), level, 41);
+        let r = ex.process(&front, &side).expect("process");
+        assert!(
+            !r.landmarks
+                .verdicts
+                .iter()
+                .any(|v| exposure(v) || v.blocks_fit()),
+            "backdrop {level}: {:?}",
+            r.landmarks.verdicts
+        );
+        assert!(r.masks.front.iou(&p.front_truth) > 0.95);
+        if level == 255 {
+            let dim = |img: &RgbImage| {
+                let mut d = img.clone();
+                d.pixels_mut()
+                    .for_each(|p| p.0 = p.0.map(|c| (c as f32 * 0.15) as u8));
+                d
+            };
+            let r = ex.process(&dim(&front), &dim(&side)).expect("process");
+            assert!(
+                has(&r, |v| matches!(v, Verdict::UnderExposed { .. })),
+                "{:?}",
+                r.landmarks.verdicts
+            );
+        }
+    }
 }

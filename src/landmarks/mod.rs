@@ -269,10 +269,15 @@ impl Verdict {
 /// Thresholds of the verdicts.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct VerdictOptions {
-    /// Mean luma below which (or crushed-black fraction above which) a frame is dark.
+    /// A frame is dark when its mean luma is below this and below `exposure_ratio` of
+    /// the learned empty scene's, or when its crushed-black fraction exceeds the empty
+    /// scene's by `max_clipped_fraction`; bright likewise (mean above `over_mean_luma`
+    /// and the empty scene's divided by `exposure_ratio`, or clipped white). Judged
+    /// against the empty scene, a white or black backdrop is not itself an exposure fault.
     pub under_mean_luma: f32,
     pub over_mean_luma: f32,
     pub max_clipped_fraction: f32,
+    pub exposure_ratio: f32,
     /// A second component at least this fraction of the largest is another person.
     pub second_person_ratio: f32,
     /// Distance from the mark beyond which the subject is off the mark, metres.
@@ -289,6 +294,7 @@ impl Default for VerdictOptions {
             under_mean_luma: 40.0,
             over_mean_luma: 225.0,
             max_clipped_fraction: 0.3,
+            exposure_ratio: 0.7,
             second_person_ratio: 0.15,
             off_mark_m: 0.10,
             max_trunk_asymmetry: 0.15,
@@ -734,10 +740,15 @@ fn ms(t: Instant) -> f64 {
 
 /// Verdicts that the segmentation statistics alone decide.
 fn view_verdicts(stats: &SegmentStats, view: View, o: &VerdictOptions, out: &mut Vec<Verdict>) {
-    if stats.mean_luma < o.under_mean_luma || stats.clipped_low > o.max_clipped_fraction {
+    let b = &stats.backdrop;
+    let darker =
+        stats.mean_luma < o.under_mean_luma && stats.mean_luma < o.exposure_ratio * b.mean_luma;
+    if darker || stats.clipped_low - b.clipped_low > o.max_clipped_fraction {
         out.push(Verdict::UnderExposed { view });
     }
-    if stats.mean_luma > o.over_mean_luma || stats.clipped_high > o.max_clipped_fraction {
+    let brighter =
+        stats.mean_luma > o.over_mean_luma && stats.mean_luma * o.exposure_ratio > b.mean_luma;
+    if brighter || stats.clipped_high - b.clipped_high > o.max_clipped_fraction {
         out.push(Verdict::OverExposed { view });
     }
     if stats.person_box.is_none() {

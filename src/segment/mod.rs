@@ -312,6 +312,9 @@ pub struct SegmentStats {
     /// Fractions of (coarse) pixels clipped white / crushed black.
     pub clipped_high: f32,
     pub clipped_low: f32,
+    /// The same statistics of the learned empty scene, the reference of the exposure
+    /// verdicts (a white or black backdrop is the scene, not an exposure fault).
+    pub backdrop: ExposureStats,
     /// Frames segmented so far by this model.
     pub frame_index: u64,
     /// Exposure gain of the frame against the model (1 when it could not be estimated).
@@ -320,6 +323,15 @@ pub struct SegmentStats {
     pub band_px: u32,
     /// Wall time of the phases.
     pub phase_ms: SegmentPhases,
+}
+
+/// Exposure statistics over the coarse grid: mean luma (0..255, Rec. 601 weights) and the
+/// fractions of cells clipped white (luma >= 250) and crushed black (<= 5).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct ExposureStats {
+    pub mean_luma: f32,
+    pub clipped_high: f32,
+    pub clipped_low: f32,
 }
 
 /// Milliseconds spent in each phase of [`BackgroundModel::segment`].
@@ -368,6 +380,8 @@ pub struct BackgroundModel {
     frames: u64,
     /// Exposure gain of the current frame against the model (see [`Self::estimate_gain`]).
     gain: f32,
+    /// Exposure statistics of the model's colours (set when the learning is finalised).
+    backdrop_exposure: ExposureStats,
     /// The person's box in the previous frame (kept out of the gain estimate).
     last_box: Option<PixelBox>,
     // Scratch.
@@ -439,6 +453,28 @@ struct ModelPlane {
 }
 
 impl ModelPlane {
+    /// Exposure statistics of the model's colours, as [`BackgroundModel::segment`]
+    /// computes them for a frame.
+    fn exposure(&self) -> ExposureStats {
+        let n = self.er.len();
+        if n == 0 {
+            return ExposureStats::default();
+        }
+        let (mut sum, mut hi, mut lo) = (0u64, 0u64, 0u64);
+        for ((&r, &g), &b) in self.er.iter().zip(&self.eg).zip(&self.eb) {
+            let l = (77 * r as u32 + 150 * g as u32 + 29 * b as u32) >> 8;
+            sum += l as u64;
+            hi += (l >= CLIP_HIGH_LUMA as u32) as u64;
+            lo += (l <= CLIP_LOW_LUMA as u32) as u64;
+        }
+        let n = n as f32;
+        ExposureStats {
+            mean_luma: sum as f32 / n,
+            clipped_high: hi as f32 / n,
+            clipped_low: lo as f32 / n,
+        }
+    }
+
     /// Sets the colour of coarse cell `k` (in range) from a model colour in 8-bit units.
     #[inline]
     fn set_colour(&mut self, k: usize, m: [f32; 3]) {
@@ -588,6 +624,7 @@ impl BackgroundModel {
             zone: vec![1; n],
             frames: 0,
             gain: 1.0,
+            backdrop_exposure: ExposureStats::default(),
             last_box: None,
             gain_samples: Vec::new(),
             hole_evidence: Vec::new(),
@@ -682,6 +719,12 @@ impl BackgroundModel {
             let radius = (o.noise_k * (3.0 * var).sqrt()).max(o.min_distance);
             self.set_model(i, m, radius * radius);
         }
+        self.backdrop_exposure = self.coarse_model.exposure();
+    }
+
+    /// Exposure statistics of the learned empty scene (zero before learning).
+    pub fn backdrop_exposure(&self) -> ExposureStats {
+        self.backdrop_exposure
     }
 
     #[inline]
@@ -986,6 +1029,7 @@ impl BackgroundModel {
         stats.mean_luma = luma_sum as f32 / nc;
         stats.clipped_high = hi as f32 / nc;
         stats.clipped_low = lo as f32 / nc;
+        stats.backdrop = self.backdrop_exposure;
 
         stats.phase_ms.classify = clock.lap();
         // 2. Clean-up, components, largest with holes filled.
