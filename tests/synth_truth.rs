@@ -205,3 +205,54 @@ fn cameras_vary_per_seed_within_the_station_ranges() {
         "{portrait} of 80 cameras in portrait"
     );
 }
+
+/// A posed subject (`synth-set --arms-deg --legs-deg`): arms turned away from the body
+/// raise the hands and move them out, legs set apart move the feet out and keep them on
+/// the floor, and the head and the stature do not move.
+#[test]
+fn a_posed_subject_moves_its_limbs_only() {
+    if !body_available() {
+        return;
+    }
+    use fitstation::synth::subject::{LimbPose, SubjectParams};
+    let rest = SubjectParams::sample(3);
+    let posed = SubjectParams {
+        pose: LimbPose {
+            arms_deg: 12.0,
+            legs_deg: 4.0,
+        },
+        ..rest.clone()
+    };
+    let (a, b) = (
+        synth::subject_mesh(&rest).expect("rest"),
+        synth::subject_mesh(&posed).expect("posed"),
+    );
+    let extent = |m: &fitstation::mesh::TriMesh| m.bounds().expect("bounds");
+    let (ra, rb) = (extent(&a), extent(&b));
+    // Stature (soles on the floor, head top) within a millimetre.
+    assert!((ra.size().y - rb.size().y).abs() < 1e-3, "{ra:?} {rb:?}");
+    // The hands (lowest points beyond the hips' width at hand height) move out.
+    assert!(rb.size().x > ra.size().x + 0.05, "{ra:?} {rb:?}");
+    // Feet: the lowest 2 cm of each side move outward, and stay on the floor.
+    let feet_x = |m: &fitstation::mesh::TriMesh, side: f64| {
+        let pts: Vec<_> = m
+            .positions
+            .iter()
+            .filter(|p| p.y < 0.02 && p.x * side > 0.0)
+            .collect();
+        pts.iter().map(|p| p.x).sum::<f64>() / pts.len().max(1) as f64
+    };
+    for side in [1.0, -1.0] {
+        let moved = (feet_x(&b, side) - feet_x(&a, side)) * side;
+        // tan(4 deg) of a leg about 0.8 m long: about 55 mm.
+        assert!(moved > 0.03 && moved < 0.08, "side {side}: {moved}");
+    }
+    // The head does not move.
+    let top = |m: &fitstation::mesh::TriMesh| {
+        *m.positions
+            .iter()
+            .max_by(|p, q| p.y.total_cmp(&q.y))
+            .expect("vertices")
+    };
+    assert!((top(&a) - top(&b)).length() < 1e-3);
+}

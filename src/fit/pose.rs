@@ -4,9 +4,9 @@
 //!   paper's zones (method.md section 1): crotch = apex of the gap between the legs,
 //!   armpits = apexes of the gaps between arms and torso, h = stature / 7.
 //! - Pose synchronisation (the paper defers to skeleton-based synchronisation; Kazmi et al.
-//!   use linear blend skinning): each arm is rotated about its shoulder and each leg about
-//!   its hip, in the front (XY) plane, so that its axis takes the angle seen in the
-//!   silhouettes. Skinning weights fall off smoothly across the joint so the shoulder and
+//!   use linear blend skinning): each arm is rotated about its shoulder, in the front (XY)
+//!   plane, so that its axis takes the angle seen in the silhouettes; each leg is sheared
+//!   sideways about its hip to the same effect, which keeps the feet flat on the floor. Skinning weights fall off smoothly across the joint so the shoulder and
 //!   groin bend instead of tearing.
 //! - Head, hands and feet are kept rigid: after each deformation they are replaced by the
 //!   best rigid motion (Kabsch) of their shape on the posed candidate.
@@ -169,6 +169,7 @@ pub fn synchronise(
         ),
     ];
     for (part, side, target, joint) in limbs {
+        let leg = matches!(part, Part::LeftLeg | Part::RightLeg);
         let Some(target) = target else { continue };
         let Some((_, axis)) = limb_axis(&body.positions, labels, part) else {
             continue;
@@ -193,7 +194,14 @@ pub fn synchronise(
             if w <= 0.0 {
                 continue;
             }
-            let moved = rot * (*p - q) + q;
+            // Legs are sheared sideways rather than turned: a subject who stands with the
+            // feet further apart keeps them flat on the floor (turned, the feet tilt and
+            // rise: the avatar floated up to 10 mm and its stature came out short).
+            let moved = if leg {
+                DVec3::new(p.x + delta.tan() * (joint.y - p.y), p.y, p.z)
+            } else {
+                rot * (*p - q) + q
+            };
             *p = *p * (1.0 - w) + moved * w;
         }
     }
@@ -282,6 +290,55 @@ mod tests {
         let r = DMat3::from_rotation_y(0.4) * DMat3::from_rotation_x(-0.2);
         let got = nearest_rotation(r * DMat3::from_diagonal(DVec3::new(2.0, 2.0, 2.0)));
         assert!((got - r).to_cols_array().iter().all(|x| x.abs() < 1e-9));
+    }
+
+    /// Legs set further apart than the template's are sheared: the feet move out and
+    /// stay at floor height, the head does not move; arms turned out rise at the hand.
+    #[test]
+    fn synchronised_legs_keep_the_feet_on_the_floor() {
+        let lib = crate::body::ShapeLibrary::shared().expect("the bundled shape library");
+        let t = lib.template();
+        let lm = template_part_landmarks(t).expect("landmarks");
+        let labels = super::super::parts::label_parts(&t.mesh, &t.mesh.one_rings(), &lm);
+        let joints = PoseJoints::new(t);
+        let mut body = t.mesh.clone();
+        let angle = |m: &TriMesh, part: Part, side: f64| {
+            let (_, axis) = limb_axis(&m.positions, &labels, part).expect("limb");
+            abduction(axis, side)
+        };
+        let (legs, arms) = (
+            (
+                angle(&body, Part::LeftLeg, 1.0),
+                angle(&body, Part::RightLeg, -1.0),
+            ),
+            (
+                angle(&body, Part::LeftArm, 1.0),
+                angle(&body, Part::RightArm, -1.0),
+            ),
+        );
+        let obs = Observation {
+            stature_m: t.info.stature_m,
+            torso_point: DVec3::ZERO,
+            arm_angles: Some((arms.0 + 0.15, arms.1 + 0.15)),
+            leg_angles: Some((legs.0 + 0.07, legs.1 + 0.07)),
+        };
+        synchronise(&mut body, &labels, &joints, 1.0, &obs);
+        let low = |m: &TriMesh| m.positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+        let high = |m: &TriMesh| m.positions.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+        assert!((low(&body) - low(&t.mesh)).abs() < 1e-4, "soles moved");
+        assert!((high(&body) - high(&t.mesh)).abs() < 1e-4, "head moved");
+        let l = angle(&body, Part::LeftLeg, 1.0);
+        assert!(
+            (l - (legs.0 + 0.07)).abs() < 0.02,
+            "left leg {l} want {}",
+            legs.0 + 0.07
+        );
+        let a = angle(&body, Part::LeftArm, 1.0);
+        assert!(
+            (a - (arms.0 + 0.15)).abs() < 0.03,
+            "left arm {a} want {}",
+            arms.0 + 0.15
+        );
     }
 
     #[test]

@@ -845,6 +845,12 @@ pub struct SynthSetArgs {
     pub first_seed: u64,
     #[arg(long, value_enum, default_value_t = FrameFormat::Mp4)]
     pub format: FrameFormat,
+    /// Arms turned from the library's rest A-pose, degrees (positive: away from the body).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub arms_deg: f64,
+    /// Legs turned from the rest pose, degrees (positive: apart).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub legs_deg: f64,
 }
 
 /// The subject of member `i` of an evaluation set: alternating genders, builds spread
@@ -865,6 +871,10 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
     for i in 0..args.count {
         let mut cfg = set_member(args.first_seed, i, args.count);
         cfg.format = args.format;
+        cfg.subject.pose = subject::LimbPose {
+            arms_deg: args.arms_deg,
+            legs_deg: args.legs_deg,
+        };
         let out = args.out.join(format!("subject_{i:02}"));
         let s = render_recording(&cfg, &out)?;
         print_summary(&s);

@@ -47,6 +47,116 @@ pub struct SubjectParams {
     /// Uniform rescale of the body to this stature, metres (None: as the library makes it).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stature_m: Option<f64>,
+    /// Arms and legs away from the library's rest A-pose (none by default).
+    #[serde(default, skip_serializing_if = "LimbPose::is_rest")]
+    pub pose: LimbPose,
+}
+
+/// Limbs of a synthetic subject turned from the shape library's rest A-pose, degrees:
+/// arms about the shoulders and legs about the hips, in the front plane, positive away
+/// from the body, both sides alike.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct LimbPose {
+    pub arms_deg: f64,
+    pub legs_deg: f64,
+}
+
+impl LimbPose {
+    pub fn is_rest(&self) -> bool {
+        self.arms_deg == 0.0 && self.legs_deg == 0.0
+    }
+}
+
+/// Half-width of the blend across a joint when posing a subject, metres. Wider than the
+/// fit's own pose synchronisation (`fit::pose`), so that the fit does not meet its own
+/// skinning in the test data.
+const POSE_BLEND_HALF_M: f64 = 0.09;
+/// Share of a limb's rotation the trunk takes next to the joint.
+const POSE_TRUNK_SHARE: f64 = 0.4;
+
+/// Turns the limbs of a library body (the template's vertex order) by `pose`: linear
+/// blend skinning with two bones per limb, the trunk fixed and the limb rotated about its
+/// joint (the template's shoulder and thigh-root joints carried by nearby vertices; legs
+/// sheared instead, see below), the weight rising smoothly across the joint along the
+/// limb's axis.
+fn pose_limbs(
+    mesh: &mut TriMesh,
+    template: &crate::body::Template,
+    pose: LimbPose,
+) -> Result<(), SubjectError> {
+    use crate::fit::correspond::Part;
+    use crate::fit::{parts, pose as fpose};
+    if pose.is_rest() {
+        return Ok(());
+    }
+    if mesh.vertex_count() != template.mesh.vertex_count() {
+        return Err(SubjectError::Invalid(
+            "posing needs the template's vertex order".into(),
+        ));
+    }
+    let lm = fpose::template_part_landmarks(template).map_err(SubjectError::Invalid)?;
+    let labels = parts::label_parts(&template.mesh, &template.mesh.one_rings(), &lm);
+    let joints = fpose::PoseJoints::new(template);
+    let limbs = [
+        (
+            Part::LeftArm,
+            1.0,
+            pose.arms_deg,
+            &joints.shoulder_left,
+            false,
+        ),
+        (
+            Part::RightArm,
+            -1.0,
+            pose.arms_deg,
+            &joints.shoulder_right,
+            false,
+        ),
+        (Part::LeftLeg, 1.0, pose.legs_deg, &joints.hip_left, true),
+        (Part::RightLeg, -1.0, pose.legs_deg, &joints.hip_right, true),
+    ];
+    for (part, side, deg, anchor, leg) in limbs {
+        if deg == 0.0 {
+            continue;
+        }
+        let j = anchor.on(&mesh.positions, 1.0);
+        let (mut c, mut n) = (DVec3::ZERO, 0.0);
+        for (p, l) in mesh.positions.iter().zip(&labels) {
+            if *l == part {
+                c += *p;
+                n += 1.0;
+            }
+        }
+        if n == 0.0 {
+            continue;
+        }
+        let axis = glam::DVec2::new(c.x / n - j.x, c.y / n - j.y).normalize_or_zero();
+        let rot = DMat3::from_rotation_z(side * deg.to_radians());
+        let q = DVec3::new(j.x, j.y, 0.0);
+        let b = POSE_BLEND_HALF_M;
+        for (p, l) in mesh.positions.iter_mut().zip(&labels) {
+            let rel = glam::DVec2::new(p.x - j.x, p.y - j.y);
+            let own = *l == part;
+            if !own && !(*l == Part::Torso && rel.length() < 2.0 * b) {
+                continue;
+            }
+            let t = ((rel.dot(axis) + b) / (2.0 * b)).clamp(0.0, 1.0);
+            let w = t * t * (3.0 - 2.0 * t) * if own { 1.0 } else { POSE_TRUNK_SHARE };
+            if w <= 0.0 {
+                continue;
+            }
+            let moved = if leg {
+                // Legs are sheared sideways, not turned: every height is kept, so the feet
+                // stay flat on the floor.
+                let shear = side * deg.to_radians().tan() * (j.y - p.y);
+                DVec3::new(p.x + shear, p.y, p.z)
+            } else {
+                rot * (*p - q) + q
+            };
+            *p = *p * (1.0 - w) + moved * w;
+        }
+    }
+    Ok(())
 }
 
 impl SubjectParams {
@@ -56,6 +166,7 @@ impl SubjectParams {
         SubjectParams {
             shape: ShapeLibrary::sample_adult(seed),
             stature_m: None,
+            pose: LimbPose::default(),
         }
     }
 }
@@ -88,6 +199,7 @@ fn shape_library() -> Result<&'static ShapeLibrary, SubjectError> {
 pub fn library_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError> {
     let lib = shape_library()?;
     let mut mesh = lib.body(&params.shape.clamp());
+    pose_limbs(&mut mesh, lib.template(), params.pose)?;
     mesh.validate().map_err(SubjectError::Invalid)?;
     let b = mesh
         .bounds()
