@@ -137,7 +137,8 @@ fn pose_limbs(
         for (p, l) in mesh.positions.iter_mut().zip(&labels) {
             let rel = glam::DVec2::new(p.x - j.x, p.y - j.y);
             let own = *l == part;
-            if !own && !(*l == Part::Torso && rel.length() < 2.0 * b) {
+            let near_joint = *l == Part::Torso && rel.length() < 2.0 * b;
+            if !own && !near_joint {
                 continue;
             }
             let t = ((rel.dot(axis) + b) / (2.0 * b)).clamp(0.0, 1.0);
