@@ -256,13 +256,25 @@ fn json_point(v: &serde_json::Value) -> Option<[f64; 3]> {
     ])
 }
 
+/// The station's name of a truth landmark: the truth says `left_armpit`, the station
+/// `armpit_left` (`LandmarkName`'s order: what, then side).
+fn station_landmark_name(truth_name: &str) -> String {
+    match truth_name.split_once('_') {
+        Some((side @ ("left" | "right"), what)) => format!("{what}_{side}"),
+        _ => truth_name.to_string(),
+    }
+}
+
 fn landmark_errors(truth: &Truth, report: &serde_json::Value) -> BTreeMap<String, f64> {
     let mut out = BTreeMap::new();
     let Some(lm) = report.get("landmarks").and_then(|l| l.as_object()) else {
         return out;
     };
     for (name, t) in &truth.landmarks {
-        if let Some(p) = lm.get(name).and_then(json_point) {
+        let found = lm
+            .get(name)
+            .or_else(|| lm.get(&station_landmark_name(name)));
+        if let Some(p) = found.and_then(json_point) {
             let d = ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2) + (p[2] - t[2]).powi(2)).sqrt();
             out.insert(name.clone(), d * 1000.0);
         }
@@ -455,9 +467,9 @@ impl EvalTable {
                 .collect()
         };
         if !lm.is_empty() {
-            s.push_str("\nlandmark               mean error mm\n");
+            s.push_str("\nlandmark (last fitted frame)   mean 3-D distance mm\n");
             for (k, v) in lm {
-                s.push_str(&format!("{k:<22} {v:>8.1}\n"));
+                s.push_str(&format!("{k:<30} {v:>8.1}\n"));
             }
         }
         let mut steps: BTreeMap<&String, (f64, f64, usize)> = BTreeMap::new();
@@ -614,4 +626,27 @@ fn progress(i: usize, n: usize, current: &Path) {
         let _ = writeln!(e);
     }
     let _ = e.flush();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn truth_landmark_names_map_to_the_stations() {
+        assert_eq!(station_landmark_name("left_armpit"), "armpit_left");
+        assert_eq!(station_landmark_name("right_acromion"), "acromion_right");
+        assert_eq!(station_landmark_name("crotch"), "crotch");
+        assert_eq!(station_landmark_name("head_top"), "head_top");
+        // Every such name is one the station writes.
+        use crate::landmarks::LandmarkName::*;
+        for (n, l) in [
+            ("left_armpit", ArmpitLeft),
+            ("right_armpit", ArmpitRight),
+            ("left_acromion", AcromionLeft),
+            ("right_acromion", AcromionRight),
+        ] {
+            assert_eq!(station_landmark_name(n), l.as_str());
+        }
+    }
 }
