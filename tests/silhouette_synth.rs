@@ -15,7 +15,7 @@
 //! Skipped (SKIPPED line) when the body source is not on this machine.
 
 use fitstation::camera::View;
-use fitstation::landmarks::crotch::CrotchProfile;
+use fitstation::landmarks::graze::TemplateProfiles;
 use fitstation::landmarks::{
     LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult,
 };
@@ -33,12 +33,15 @@ use std::path::{Path, PathBuf};
 const MIN_IOU: f64 = 0.90;
 /// Mean IoU over all frames and views.
 const MIN_MEAN_IOU: f64 = 0.95;
-/// Stature within 10 mm (issue 4 target for the landmark heights).
-const MAX_HEIGHT_ERR_M: f64 = 0.010;
+/// Stature (the head top) within 5 mm: the issue's 10 mm for landmark heights, halved
+/// since the head top is moved down by the template's dome for each view's grazing ray
+/// (`landmarks::graze`; 3.0 mm worst on these seeds, 7.4-12.7 mm on the evaluation sets
+/// before).
+const MAX_HEIGHT_ERR_M: f64 = 0.005;
 /// Crotch height within the issue's 10 mm. The front camera sees the crotch as the apex
 /// of the leg gap, which its ray reaches below the perineum when it looks down or up
 /// through the body (4-15 mm on the evaluation sets before); the station corrects for
-/// that with the template's trough under the crotch (`landmarks::crotch`), which is why
+/// that with the template's trough under the crotch (`landmarks::graze`), which is why
 /// the executor here gets the shape library's template.
 const MAX_CROTCH_ERR_M: f64 = 0.010;
 /// Armpits and acromions: the issue's 10 mm holds on these seeds (9.4 and 9.8 mm worst)
@@ -143,9 +146,10 @@ fn evaluate(rec_dir: &Path, name: &str, out: &mut Vec<FrameScore>) {
     let truth = load_truth(&tdir).expect("truth");
     let mut rec = Recording::open(rec_dir).expect("open");
     let calib = rec.calibration().clone();
-    let template = fitstation::body::ShapeLibrary::shared().expect("the bundled shape library");
     let opts = SilhouetteOptions {
-        crotch_profile: CrotchProfile::from_template(template.template()),
+        template_profiles: Some(
+            TemplateProfiles::of_shape_library().expect("the bundled shape library"),
+        ),
         ..SilhouetteOptions::default()
     };
     let mut ex = SilhouetteExecutor::new(&calib, opts);

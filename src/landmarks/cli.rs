@@ -4,7 +4,7 @@
 //!
 //! Station points are printed in metres, pixels in each frame's distorted pixels.
 
-use super::crotch::CrotchProfile;
+use super::graze::TemplateProfiles;
 use super::{
     ContourPart, LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Status,
     ViewAnalysis,
@@ -65,10 +65,10 @@ pub fn run(args: LandmarksArgs) -> anyhow::Result<()> {
     };
     let mut opts = SilhouetteOptions::default();
     opts.segment.adapt_rate = 0.0;
-    match crate::body::ShapeLibrary::shared() {
-        Ok(lib) => opts.crotch_profile = CrotchProfile::from_template(lib.template()),
+    match TemplateProfiles::of_shape_library() {
+        Ok(p) => opts.template_profiles = Some(p),
         Err(e) => eprintln!(
-            "warning: no shape library ({e}): the crotch is the leg gap's apex lifted onto the body axis"
+            "warning: no shape library ({e}): the crotch and the head top are lifted onto the body axis as seen"
         ),
     }
     let mut ex = SilhouetteExecutor::new(&calib, opts);

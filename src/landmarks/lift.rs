@@ -12,7 +12,7 @@
 //! so one table of the side axis on x = 0 serves every x0.
 
 use super::analysis::{self, FrontFeatures, SideFeatures};
-use super::crotch::CrotchProfile;
+use super::graze::GrazeProfile;
 use super::{LandmarkName, NamedPoint, SilhouetteOptions, SilhouetteResult, Verdict};
 use crate::camera::{Camera, StationCalibration};
 use glam::{DVec2, DVec3};
@@ -200,26 +200,24 @@ pub fn lift_front_ray(front: &Camera, n: DVec2, axis: &SideAxis, iterations: usi
     p
 }
 
-/// The crotch above the leg gap's apex `apex` (lifted onto the body axis): the front
-/// ray through the apex grazes the trough under the crotch ([`CrotchProfile`]), so it
-/// passes the perineum's depth below the perineum, by the trough's drop for the ray's
-/// slope. Unchanged without a stature or when the camera is level with the body.
-fn crotch_above_apex(
-    front: &Camera,
-    apex: DVec3,
-    profile: &CrotchProfile,
-    stature: f64,
-    axis: &SideAxis,
-) -> DVec3 {
-    let c = front.center_in_station();
-    let dz = c.z - apex.z;
-    if stature <= 0.0 || dz.abs() < 1e-6 {
-        return apex;
+/// The height of the landmark whose grazing ray from `camera` was lifted to `p`: the ray
+/// crosses the landmark's depth off the landmark by the template section's offset for
+/// the ray's slope ([`GrazeProfile`]), scaled to a body of stature `size`. `along_x`:
+/// the slope is taken along X (side camera), else along Z (front camera). Unchanged
+/// without a size or when the camera is at the landmark's depth.
+fn grazed_height(
+    camera: &Camera,
+    p: DVec3,
+    along_x: bool,
+    profile: &GrazeProfile,
+    size: f64,
+) -> f64 {
+    let c = camera.center_in_station();
+    let d = if along_x { c.x - p.x } else { c.z - p.z };
+    if size <= 0.0 || d.abs() < 1e-6 {
+        return p.y;
     }
-    let slope = (c.y - apex.y) / dz;
-    let y = apex.y - profile.apparent_offset(slope, stature);
-    let z = axis.at_plane(y, apex.x).unwrap_or(apex.z);
-    DVec3::new(apex.x, y, z)
+    p.y - profile.apparent_offset((c.y - p.y) / d, size)
 }
 
 /// Normalised coordinates of the front ray through a point of the front plane z = 0.
@@ -245,17 +243,27 @@ pub fn lift_all(
     let lift_idx = |i: usize| lift_front_ray(front, front_norm[i], &axis, iters);
     let mut pts: Vec<(LandmarkName, DVec3)> = Vec::new();
 
-    // Stature: the higher of the two views' head tops (each sees the rim slightly behind
-    // the top, so both err low).
+    // Stature: the head top of both views. Each view's ray over the head grazes the
+    // dome's near slope, so with the template's dome both are moved down onto the top
+    // and averaged; without it the higher is taken.
+    let profiles = opts.template_profiles.as_ref();
     let mut stature = 0.0f64;
     if let Some(i) = ff.head_top {
-        let p = lift_idx(i);
-        stature = p.y;
-        pts.push((HeadTop, p));
+        let mut p = lift_idx(i);
+        let front_top = match profiles.and_then(|t| t.head_front.as_ref()) {
+            Some(dome) => grazed_height(front, p, false, dome, p.y),
+            None => p.y,
+        };
+        stature = front_top;
         if let Some(j) = sf.head_top {
             let ps = ray_plane(side, side_norm[j], PlaneAxis::X, p.x);
-            stature = stature.max(ps.y);
+            stature = match profiles.and_then(|t| t.head_side.as_ref()) {
+                Some(dome) => 0.5 * (front_top + grazed_height(side, ps, true, dome, ps.y)),
+                None => stature.max(ps.y),
+            };
         }
+        p.y = stature;
+        pts.push((HeadTop, p));
     }
     let h = stature / 7.0;
     for (name, idx) in [
@@ -267,8 +275,9 @@ pub fn lift_all(
     ] {
         if let Some(i) = idx {
             let mut p = lift_idx(i);
-            if let (Crotch, Some(profile)) = (name, &opts.crotch_profile) {
-                p = crotch_above_apex(front, p, profile, stature, &axis);
+            if let (Crotch, Some(trough)) = (name, profiles.and_then(|t| t.crotch.as_ref())) {
+                p.y = grazed_height(front, p, false, trough, stature);
+                p.z = axis.at_plane(p.y, p.x).unwrap_or(p.z);
             }
             pts.push((name, p));
         }

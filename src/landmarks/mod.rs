@@ -8,9 +8,10 @@
 //! the station frame with perspective rays (`lift`): the front ray of a landmark is cut
 //! by the plane z = z_side(height), where z_side is the side contour's axis at that
 //! height (computed on the plane x = the landmark's x), iterated so both views agree.
-//! The crotch is the exception: the front ray through the leg gap's apex grazes the
-//! trough under the crotch and passes the body axis below the perineum, so it is raised
-//! by the template's trough for that ray's slope (`crotch`).
+//! The crotch and the head top are the exceptions: the ray through the leg gap's apex
+//! grazes the trough under the crotch and passes the body axis below the perineum, the
+//! ray over the head grazes its dome and passes the axis above the top; both are moved
+//! by the template's section for that ray's slope (`graze`).
 //!
 //! # Conventions
 //! - Station frame (`shared/spec/formats.md`): metres, +Y up, +Z toward the front camera,
@@ -24,7 +25,7 @@
 //! - "Left"/"right" are the subject's.
 
 pub mod cli;
-pub mod crotch;
+pub mod graze;
 pub mod lift;
 pub mod phantom;
 pub mod zones;
@@ -312,12 +313,13 @@ pub struct SilhouetteOptions {
     pub contour_spacing_px: f64,
     /// Lifting iterations between the two views.
     pub lift_iterations: usize,
-    /// The template's trough under the crotch ([`crotch::CrotchProfile`]): with it the
-    /// crotch is placed where the front camera's grazing ray says the perineum is, not
-    /// where that ray crosses the body axis (which is below it). `None`: the apex is
-    /// lifted like any landmark. The station and the `landmarks` command set it from
-    /// the shape library's template.
-    pub crotch_profile: Option<crotch::CrotchProfile>,
+    /// The template's sections at the crotch and the head top
+    /// ([`graze::TemplateProfiles`]): with them the crotch and the head top are placed
+    /// where the grazing rays say they are, not where those rays cross the body axis
+    /// (below the perineum, above the head). `None`: they are lifted like any landmark.
+    /// The station and the `landmarks` command set them from the shape library's
+    /// template.
+    pub template_profiles: Option<graze::TemplateProfiles>,
 }
 
 impl Default for SilhouetteOptions {
@@ -328,7 +330,7 @@ impl Default for SilhouetteOptions {
             subpixel: SubpixelOptions::default(),
             contour_spacing_px: 2.0,
             lift_iterations: 3,
-            crotch_profile: None,
+            template_profiles: None,
         }
     }
 }

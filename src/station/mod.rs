@@ -15,7 +15,7 @@ use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
 use crate::fit::correspond::MaskRef;
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
-use crate::landmarks::crotch::CrotchProfile;
+use crate::landmarks::graze::TemplateProfiles;
 use crate::landmarks::{
     LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict, ViewAnalysis,
 };
@@ -95,8 +95,9 @@ impl StationProcessor {
         library: Arc<ShapeLibrary>,
         mut opts: StationOptions,
     ) -> Result<Self, crate::fit::FitError> {
-        if opts.silhouette.crotch_profile.is_none() {
-            opts.silhouette.crotch_profile = CrotchProfile::from_template(library.template());
+        if opts.silhouette.template_profiles.is_none() {
+            opts.silhouette.template_profiles =
+                Some(TemplateProfiles::of_template(library.template()));
         }
         let fitter = Fitter::new(library, opts.fit.clone())?;
         Ok(StationProcessor {
