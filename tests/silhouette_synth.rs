@@ -44,11 +44,15 @@ const MAX_HEIGHT_ERR_M: f64 = 0.005;
 /// that with the template's trough under the crotch (`landmarks::graze`), which is why
 /// the executor here gets the shape library's template.
 const MAX_CROTCH_ERR_M: f64 = 0.010;
-/// Armpits and acromions: the 10 mm holds on these seeds (9.4 and 9.8 mm worst)
+/// Armpits and acromions: the 10 mm holds on these seeds (9.4 and 6.7 mm worst)
 /// but not on every evaluation set (armpits 11.5-17 mm worst on the fitted frames of the
-/// 12- and 24-subject sets: the mask's apex of the narrow fold between arm and torso is
-/// 1-3 px below where arm and torso meet). This bound guards against regressions.
+/// 12- and 24-subject sets, the same on the renderer's own masks: the narrow fold between
+/// arm and torso closes in the image below where they meet; acromions up to 11 mm).
+/// This bound guards against regressions.
 const MAX_ARM_ERR_M: f64 = 0.012;
+/// Acromions on these seeds: 6.7 mm worst with the shoulder's section (`landmarks::graze`),
+/// 9.8 mm without.
+const MAX_ACROMION_ERR_M: f64 = 0.008;
 /// Hard-look seeds and ordinary seeds scored by default.
 const HARD_SEEDS: usize = 5;
 const EASY_SEEDS: [u64; 2] = [2, 5];
@@ -345,6 +349,10 @@ fn synthetic_recordings_segment_and_give_landmark_heights() {
         "{worst:?}"
     );
     assert!(worst[2..].iter().all(|&w| w < MAX_ARM_ERR_M), "{worst:?}");
+    assert!(
+        worst[4..].iter().all(|&w| w < MAX_ACROMION_ERR_M),
+        "{worst:?}"
+    );
 }
 
 /// A seed whose front camera looks down on the crotch steeply: the leg gap's apex lifted

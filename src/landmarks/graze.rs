@@ -13,7 +13,8 @@
 //!   sit 0.1-0.7 m above the crotch at 2.4-3.5 m.
 //! - Over the head the section is a dome. A camera below the head top looks up, so the
 //!   ray that grazes the dome's near slope crosses the top's depth *above* the top: about
-//!   +2 mm in each view on the synthetic sets.
+//!   +2 mm in each view on the synthetic sets. The acromions, on the front silhouette's
+//!   shoulder line, are the same case over the shoulder's top.
 //!
 //! [`GrazeProfile`] is a template body's section at the landmark (under it or over it).
 //! For a ray of slope `s` (height gained per metre along the section's horizontal axis)
@@ -176,11 +177,14 @@ pub struct TemplateProfiles {
     /// The dome of the head along Z (front camera) and along X (side camera).
     pub head_front: Option<GrazeProfile>,
     pub head_side: Option<GrazeProfile>,
+    /// The top of each shoulder along Z through the acromion (front camera).
+    pub acromion_left: Option<GrazeProfile>,
+    pub acromion_right: Option<GrazeProfile>,
 }
 
 impl TemplateProfiles {
-    /// The profiles of a prepared template: the crotch from its analysis
-    /// (`TemplateInfo::landmarks`), the head top its highest vertex.
+    /// The profiles of a prepared template: the crotch and the acromions from its
+    /// analysis (`TemplateInfo::landmarks`), the head top its highest vertex.
     pub fn of_template(t: &Template) -> TemplateProfiles {
         let stature = t.info.stature_m;
         let top = t
@@ -192,6 +196,7 @@ impl TemplateProfiles {
         let head = |normal: DVec3| {
             top.and_then(|p| GrazeProfile::of_mesh(&t.mesh, stature, p, normal, Graze::Over))
         };
+        let shoulder = |a: DVec3| GrazeProfile::of_mesh(&t.mesh, stature, a, DVec3::X, Graze::Over);
         TemplateProfiles {
             crotch: GrazeProfile::of_mesh(
                 &t.mesh,
@@ -202,6 +207,8 @@ impl TemplateProfiles {
             ),
             head_front: head(DVec3::X),
             head_side: head(DVec3::Z),
+            acromion_left: shoulder(t.info.landmarks.acromion_left),
+            acromion_right: shoulder(t.info.landmarks.acromion_right),
         }
     }
 
@@ -259,7 +266,7 @@ mod tests {
     }
 
     #[test]
-    fn the_templates_trough_and_dome_are_where_the_landmarks_are() {
+    fn the_templates_sections_are_where_the_landmarks_are() {
         let lib = crate::body::ShapeLibrary::shared().expect("the bundled shape library");
         let t = lib.template();
         let st = t.info.stature_m;
@@ -288,6 +295,18 @@ mod tests {
                 dome.apparent_offset(-0.25, st),
             );
             assert!(u1 > 0.0 && u2 > u1 && u2 < 0.02, "{u1} {u2}");
+        }
+        // The shoulders: a ray over them crosses the acromion's depth at or above it.
+        for shoulder in [p.acromion_left, p.acromion_right] {
+            let shoulder = shoulder.expect("the template has shoulders");
+            let (level, steep) = (
+                shoulder.apparent_offset(0.0, st),
+                shoulder.apparent_offset(-0.25, st),
+            );
+            assert!(
+                level >= 0.0 && steep > level && steep < 0.03,
+                "{level} {steep}"
+            );
         }
     }
 }

@@ -275,8 +275,14 @@ pub fn lift_all(
     ] {
         if let Some(i) = idx {
             let mut p = lift_idx(i);
-            if let (Crotch, Some(trough)) = (name, profiles.and_then(|t| t.crotch.as_ref())) {
-                p.y = grazed_height(front, p, false, trough, stature);
+            let section = profiles.and_then(|t| match name {
+                Crotch => t.crotch.as_ref(),
+                AcromionLeft => t.acromion_left.as_ref(),
+                AcromionRight => t.acromion_right.as_ref(),
+                _ => None,
+            });
+            if let Some(section) = section {
+                p.y = grazed_height(front, p, false, section, stature);
                 p.z = axis.at_plane(p.y, p.x).unwrap_or(p.z);
             }
             pts.push((name, p));
