@@ -353,6 +353,11 @@ fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result
                     .join("; ")
             })
             .unwrap_or_default();
+        let msgs = if msgs.is_empty() {
+            "the recording ends before anybody steps in after the empty scene".to_string()
+        } else {
+            msgs
+        };
         bail!(
             "no frame could be fitted ({} frames, {} with a subject): {msgs}",
             summary.report["frames"]["total"],
