@@ -68,7 +68,7 @@ pub fn run(args: LandmarksArgs) -> anyhow::Result<()> {
     match TemplateProfiles::of_shape_library() {
         Ok(p) => opts.template_profiles = Some(p),
         Err(e) => eprintln!(
-            "warning: no shape library ({e}): the crotch and the head top are lifted onto the body axis as seen"
+            "warning: no shape library ({e}): the crotch, head top and acromions are lifted onto the body axis as seen"
         ),
     }
     let mut ex = SilhouetteExecutor::new(&calib, opts);

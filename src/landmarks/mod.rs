@@ -742,15 +742,13 @@ fn ms(t: Instant) -> f64 {
 
 /// Verdicts that the segmentation statistics alone decide.
 fn view_verdicts(stats: &SegmentStats, view: View, o: &VerdictOptions, out: &mut Vec<Verdict>) {
-    let b = &stats.backdrop;
-    let darker =
-        stats.mean_luma < o.under_mean_luma && stats.mean_luma < o.exposure_ratio * b.mean_luma;
-    if darker || stats.clipped_low - b.clipped_low > o.max_clipped_fraction {
+    let (f, b) = (&stats.exposure, &stats.backdrop);
+    let darker = f.mean_luma < o.under_mean_luma && f.mean_luma < o.exposure_ratio * b.mean_luma;
+    if darker || f.clipped_low - b.clipped_low > o.max_clipped_fraction {
         out.push(Verdict::UnderExposed { view });
     }
-    let brighter =
-        stats.mean_luma > o.over_mean_luma && stats.mean_luma * o.exposure_ratio > b.mean_luma;
-    if brighter || stats.clipped_high - b.clipped_high > o.max_clipped_fraction {
+    let brighter = f.mean_luma > o.over_mean_luma && f.mean_luma * o.exposure_ratio > b.mean_luma;
+    if brighter || f.clipped_high - b.clipped_high > o.max_clipped_fraction {
         out.push(Verdict::OverExposed { view });
     }
     if stats.person_box.is_none() {

@@ -307,11 +307,8 @@ pub struct SegmentStats {
     /// Box of the person in full-resolution pixels.
     pub person_box: Option<PixelBox>,
     pub touches: BorderTouch,
-    /// Mean luma of the frame (coarse grid), 0..255.
-    pub mean_luma: f32,
-    /// Fractions of (coarse) pixels clipped white / crushed black.
-    pub clipped_high: f32,
-    pub clipped_low: f32,
+    /// Exposure statistics of the frame.
+    pub exposure: ExposureStats,
     /// The same statistics of the learned empty scene, the reference of the exposure
     /// verdicts (a white or black backdrop is the scene, not an exposure fault).
     pub backdrop: ExposureStats,
@@ -332,6 +329,27 @@ pub struct ExposureStats {
     pub mean_luma: f32,
     pub clipped_high: f32,
     pub clipped_low: f32,
+}
+
+impl ExposureStats {
+    /// From the luma sum and the clipped and crushed counts of `n` cells.
+    fn from_counts(luma_sum: u64, clipped_high: u64, clipped_low: u64, n: usize) -> Self {
+        if n == 0 {
+            return ExposureStats::default();
+        }
+        let n = n as f32;
+        ExposureStats {
+            mean_luma: luma_sum as f32 / n,
+            clipped_high: clipped_high as f32 / n,
+            clipped_low: clipped_low as f32 / n,
+        }
+    }
+}
+
+/// Integer luma (Rec. 601 weights) of an 8-bit colour, as the exposure statistics count it.
+#[inline(always)]
+fn luma8(r: u32, g: u32, b: u32) -> u32 {
+    (77 * r + 150 * g + 29 * b) >> 8
 }
 
 /// Milliseconds spent in each phase of [`BackgroundModel::segment`].
@@ -456,23 +474,14 @@ impl ModelPlane {
     /// Exposure statistics of the model's colours, as [`BackgroundModel::segment`]
     /// computes them for a frame.
     fn exposure(&self) -> ExposureStats {
-        let n = self.er.len();
-        if n == 0 {
-            return ExposureStats::default();
-        }
         let (mut sum, mut hi, mut lo) = (0u64, 0u64, 0u64);
         for ((&r, &g), &b) in self.er.iter().zip(&self.eg).zip(&self.eb) {
-            let l = (77 * r as u32 + 150 * g as u32 + 29 * b as u32) >> 8;
+            let l = luma8(r as u32, g as u32, b as u32);
             sum += l as u64;
             hi += (l >= CLIP_HIGH_LUMA as u32) as u64;
             lo += (l <= CLIP_LOW_LUMA as u32) as u64;
         }
-        let n = n as f32;
-        ExposureStats {
-            mean_luma: sum as f32 / n,
-            clipped_high: hi as f32 / n,
-            clipped_low: lo as f32 / n,
-        }
+        ExposureStats::from_counts(sum, hi, lo, self.er.len())
     }
 
     /// Sets the colour of coarse cell `k` (in range) from a model colour in 8-bit units.
@@ -972,7 +981,7 @@ impl BackgroundModel {
             let (mut sum, mut n_hi, mut n_lo) = (0u32, 0u32, 0u32);
             for &v in rgb.iter() {
                 let (r, g, b) = (v & 0xff, (v >> 8) & 0xff, v >> 16);
-                let l = (77 * r + 150 * g + 29 * b) >> 8;
+                let l = luma8(r, g, b);
                 sum += l;
                 n_hi += (l >= CLIP_HIGH_LUMA as u32) as u32;
                 n_lo += (l <= CLIP_LOW_LUMA as u32) as u32;
@@ -1026,9 +1035,7 @@ impl BackgroundModel {
             );
         }
         let nc = (cw * ch) as f32;
-        stats.mean_luma = luma_sum as f32 / nc;
-        stats.clipped_high = hi as f32 / nc;
-        stats.clipped_low = lo as f32 / nc;
+        stats.exposure = ExposureStats::from_counts(luma_sum, hi, lo, cw * ch);
         stats.backdrop = self.backdrop_exposure;
 
         stats.phase_ms.classify = clock.lap();
