@@ -108,7 +108,7 @@ fn truth_scores_zero_and_a_shrunk_body_reports_the_shrink() {
         assert!((iou - 1.0).abs() < 1e-12, "{view} IoU {iou}");
     }
     assert_eq!(row.mask_iou.len(), 2);
-    assert!(row.landmark_error_mm.values().all(|e| *e < 0.01));
+    assert!(row.landmarks.distance_mm.values().all(|e| *e < 0.01));
     assert_eq!(row.timings_ms["fit"].p95, 31.0);
 
     // Shrunk horizontally about the body axis (the crotch's vertical line).
@@ -144,7 +144,7 @@ fn truth_scores_zero_and_a_shrunk_body_reports_the_shrink() {
     }
     let s = row.surface.unwrap();
     assert!(s.mean_mm > 1.0 && s.p95_mm > s.mean_mm, "{s:?}");
-    assert!(row.landmark_error_mm.values().any(|e| *e > 1.0));
+    assert!(row.landmarks.distance_mm.values().any(|e| *e > 1.0));
     assert!(row.mask_iou.is_empty());
 
     // The CLI: table, JSON and HTML report.

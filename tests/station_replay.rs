@@ -79,13 +79,30 @@ fn replay_measures_a_synthetic_subject_close_to_its_truth() {
             "{key}: fitted {got:.1} mm, truth {want:.1} mm"
         );
     }
+    // The fitted body's own landmarks (issue 4's 10 mm on heights): the truth's
+    // `left_armpit` is the report's `armpit_left`.
+    for (truth_name, name) in [
+        ("crotch", "crotch"),
+        ("left_armpit", "armpit_left"),
+        ("right_armpit", "armpit_right"),
+        ("left_acromion", "acromion_left"),
+        ("right_acromion", "acromion_right"),
+        ("head_top", "head_top"),
+    ] {
+        let got = report["body_landmarks"][name]["y"]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no body landmark {name} in report"));
+        let err = (got - truth.landmarks[truth_name][1]) * 1000.0;
+        eprintln!("{name}: fitted body height error {err:+.1} mm");
+        assert!(err.abs() < 10.0, "{name}: height error {err:+.1} mm");
+    }
     let avatar = fitstation::mesh::io::read_obj(&out.join("avatar.obj"), None).unwrap();
     let template = fitstation::body::ShapeLibrary::load_default().unwrap();
     assert_eq!(
         avatar.vertex_count(),
         template.template().mesh.vertex_count()
     );
-    for stage in ["silhouettes", "measure"] {
+    for stage in ["silhouettes", "measure", "body_landmarks"] {
         assert!(
             report["timings_ms"][stage]["median"].as_f64().is_some(),
             "no timing for {stage}"

@@ -33,7 +33,9 @@ use std::path::PathBuf;
 
 pub use cli::{run, TemplatesArgs};
 pub use library::ShapeLibrary;
-pub use prepare::{prepare, Joints, Landmarks, RigidParts, TemplateInfo};
+pub use prepare::{
+    prepare, surface_landmarks, Joints, Landmarks, RigidParts, SurfaceLandmarks, TemplateInfo,
+};
 
 /// Errors of the body module. File errors name the file and the line (text) or the
 /// record (binary data).

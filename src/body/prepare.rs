@@ -554,12 +554,16 @@ fn component(
     out
 }
 
-/// Analyses a template mesh (see the module docs).
+/// The surface landmarks of a body mesh alone (method.md section 1 steps 2-4, on
+/// horizontal sections as described in the module docs), without the skeleton or the
+/// rigid parts: what [`prepare`] finds first, and what the station reports for a fitted
+/// avatar (the same definitions as the template's, so a fitted body and its truth are
+/// compared like with like).
 ///
 /// # Errors
-/// [`BodyError::Prepare`] when the mesh is empty, implausibly sized (stature outside
-/// 0.5 .. 3 m), or a landmark cannot be found (no two legs, no arm apart from the torso).
-pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
+/// A mesh that is not a standing person in an A-pose: no crotch, an arm that never
+/// separates from the torso, no shoulder envelope.
+pub fn surface_landmarks(mesh: &TriMesh) -> Result<SurfaceLandmarks, BodyError> {
     mesh.validate().map_err(BodyError::Prepare)?;
     let bb = mesh
         .bounds()
@@ -577,7 +581,6 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
         .max_by(|&a, &b| mesh.positions[a].y.total_cmp(&mesh.positions[b].y))
         .unwrap_or(0);
     let top = mesh.positions[top_i];
-
     // Crotch (step 2): lowest height where a loop spans the axis, scanning up the legs.
     let any_span = |y: f64| loops_at(mesh, y).iter().any(|l| spans(l, cx));
     let mut y = floor_y + 0.3 * stature;
@@ -613,7 +616,6 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
 
     // Armpits (step 3): scanning down from the neck, where an arm separates.
     let mut armpits = [DVec3::ZERO; 2];
-    let mut arm_axes: [Vec<DVec3>; 2] = [Vec::new(), Vec::new()];
     for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
         let start = crotch_y + 2.7 * h;
         let stop = crotch_y + 0.5 * h;
@@ -642,12 +644,6 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
             .map(|l| if s > 0.0 { l.xmin } else { l.xmax })
             .fold(torso_edge, |a, b| if (b - a) * s > 0.0 { b } else { a });
         armpits[k] = DVec3::new(0.5 * (torso_edge + arm_edge), ay, an.axis_z(ay));
-        arm_axes[k] = trace_arm(mesh, ay, crotch_x, side, floor_y);
-        if arm_axes[k].len() < 3 {
-            return Err(BodyError::Prepare(format!(
-                "{side:?} arm could not be traced below the armpit"
-            )));
-        }
     }
 
     // Acromions (step 4): the front upper envelope point closest to g.
@@ -680,6 +676,82 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
             })
             .copied()
             .ok_or_else(|| BodyError::Prepare(format!("no {side:?} shoulder envelope")))?;
+    }
+
+    Ok(SurfaceLandmarks {
+        stature,
+        floor_y,
+        top_index: top_i,
+        top,
+        crotch: an.crotch,
+        armpits,
+        acromions,
+    })
+}
+
+/// What [`surface_landmarks`] finds (station frame, metres).
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceLandmarks {
+    pub stature: f64,
+    /// Lowest point of the mesh (the soles).
+    pub floor_y: f64,
+    /// The highest vertex (top of the head).
+    pub top_index: usize,
+    pub top: DVec3,
+    pub crotch: DVec3,
+    /// Left, right.
+    pub armpits: [DVec3; 2],
+    /// Left, right.
+    pub acromions: [DVec3; 2],
+}
+
+impl SurfaceLandmarks {
+    /// Named points as the station names them (`crotch`, `armpit_left`, ...,
+    /// `head_top`).
+    pub fn named(&self) -> [(&'static str, DVec3); 6] {
+        [
+            ("head_top", self.top),
+            ("crotch", self.crotch),
+            ("armpit_left", self.armpits[0]),
+            ("armpit_right", self.armpits[1]),
+            ("acromion_left", self.acromions[0]),
+            ("acromion_right", self.acromions[1]),
+        ]
+    }
+}
+
+/// Analyses a template mesh (see the module docs).
+///
+/// # Errors
+/// [`BodyError::Prepare`] when the mesh is empty, implausibly sized (stature outside
+/// 0.5 .. 3 m), or a landmark cannot be found (no two legs, no arm apart from the torso).
+pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
+    let SurfaceLandmarks {
+        stature,
+        floor_y,
+        top_index: top_i,
+        top,
+        crotch,
+        armpits,
+        acromions,
+    } = surface_landmarks(mesh)?;
+    let h = stature / HEADS_PER_STATURE;
+    let crotch_x = crotch.x;
+    let crotch_y = crotch.y;
+    let an = Analysis {
+        mesh,
+        h,
+        crotch,
+        top,
+    };
+    let mut arm_axes: [Vec<DVec3>; 2] = [Vec::new(), Vec::new()];
+    for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
+        arm_axes[k] = trace_arm(mesh, armpits[k].y, crotch_x, side, floor_y);
+        if arm_axes[k].len() < 3 {
+            return Err(BodyError::Prepare(format!(
+                "{side:?} arm could not be traced below the armpit"
+            )));
+        }
     }
 
     // Axis joints (step 7).

@@ -122,8 +122,11 @@ pub struct EvalRow {
     pub surface: Option<SurfaceDistance>,
     /// Mean mask IoU per view over the frames both hold.
     pub mask_iou: BTreeMap<String, f64>,
-    /// Landmark error (3-D distance), millimetres.
-    pub landmark_error_mm: BTreeMap<String, f64>,
+    /// The report's `landmarks` (the silhouettes' of the last fitted frame) against the
+    /// truth's.
+    pub landmarks: LandmarkErrors,
+    /// The report's `body_landmarks` (the fitted avatar's own) against the truth's.
+    pub body_landmarks: LandmarkErrors,
     pub timings_ms: BTreeMap<String, StageTiming>,
     pub profile: Vec<ProfileSample>,
     /// Largest frame-to-frame change of each shown measurement after settling, mm
@@ -168,7 +171,8 @@ pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalErr
         Some(d) => mask_iou(&truth, truth_dir, d)?,
         None => BTreeMap::new(),
     };
-    let landmark_error_mm = landmark_errors(&truth, &result.report_json);
+    let landmarks = landmark_errors(&truth, &result.report_json, "landmarks");
+    let body_landmarks = landmark_errors(&truth, &result.report_json, "body_landmarks");
     let timings_ms = timings(&result.report_json);
     let profile = girth_profile(&true_mesh, &result.avatar);
     let settled_step_mm = result
@@ -187,7 +191,8 @@ pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalErr
         measurements,
         surface,
         mask_iou,
-        landmark_error_mm,
+        landmarks,
+        body_landmarks,
         timings_ms,
         profile,
     })
@@ -265,9 +270,19 @@ fn station_landmark_name(truth_name: &str) -> String {
     }
 }
 
-fn landmark_errors(truth: &Truth, report: &serde_json::Value) -> BTreeMap<String, f64> {
-    let mut out = BTreeMap::new();
-    let Some(lm) = report.get("landmarks").and_then(|l| l.as_object()) else {
+/// Landmark errors of one source of a report against the truth, millimetres, keyed by
+/// the truth's names.
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct LandmarkErrors {
+    /// 3-D distance.
+    pub distance_mm: BTreeMap<String, f64>,
+    /// Signed height error (reported - true).
+    pub height_mm: BTreeMap<String, f64>,
+}
+
+fn landmark_errors(truth: &Truth, report: &serde_json::Value, key: &str) -> LandmarkErrors {
+    let mut out = LandmarkErrors::default();
+    let Some(lm) = report.get(key).and_then(|l| l.as_object()) else {
         return out;
     };
     for (name, t) in &truth.landmarks {
@@ -276,7 +291,8 @@ fn landmark_errors(truth: &Truth, report: &serde_json::Value) -> BTreeMap<String
             .or_else(|| lm.get(&station_landmark_name(name)));
         if let Some(p) = found.and_then(json_point) {
             let d = ((p[0] - t[0]).powi(2) + (p[1] - t[1]).powi(2) + (p[2] - t[2]).powi(2)).sqrt();
-            out.insert(name.clone(), d * 1000.0);
+            out.distance_mm.insert(name.clone(), d * 1000.0);
+            out.height_mm.insert(name.clone(), (p[1] - t[1]) * 1000.0);
         }
     }
     out
@@ -455,21 +471,39 @@ impl EvalTable {
                 m.worst_subject
             ));
         }
-        let lm: Vec<(&String, f64)> = {
-            let mut by: BTreeMap<&String, Vec<f64>> = BTreeMap::new();
+        for (title, pick) in [
+            (
+                "landmark, silhouettes of the last fitted frame",
+                (|r: &EvalRow| &r.landmarks) as fn(&EvalRow) -> &LandmarkErrors,
+            ),
+            ("landmark, the fitted body's own", |r: &EvalRow| {
+                &r.body_landmarks
+            }),
+        ] {
+            let mut by: BTreeMap<&String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
             for r in &self.rows {
-                for (k, v) in &r.landmark_error_mm {
-                    by.entry(k).or_default().push(*v);
+                let l = pick(r);
+                for (k, d) in &l.distance_mm {
+                    let e = by.entry(k).or_default();
+                    e.0.push(*d);
+                    e.1.extend(l.height_mm.get(k));
                 }
             }
-            by.into_iter()
-                .map(|(k, v)| (k, v.iter().sum::<f64>() / v.len() as f64))
-                .collect()
-        };
-        if !lm.is_empty() {
-            s.push_str("\nlandmark (last fitted frame)   mean 3-D distance mm\n");
-            for (k, v) in lm {
-                s.push_str(&format!("{k:<30} {v:>8.1}\n"));
+            if by.is_empty() {
+                continue;
+            }
+            s.push_str(&format!(
+                "\n{title:<48} mean 3-D mm  height: mean |err| mm  worst |err| mm\n"
+            ));
+            for (k, (d, hgt)) in by {
+                let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+                let abs: Vec<f64> = hgt.iter().map(|x| x.abs()).collect();
+                let worst = abs.iter().copied().fold(0.0, f64::max);
+                s.push_str(&format!(
+                    "{k:<48} {:>11.1} {:>22.1} {worst:>15.1}\n",
+                    mean(&d),
+                    mean(&abs)
+                ));
             }
         }
         let mut steps: BTreeMap<&String, (f64, f64, usize)> = BTreeMap::new();

@@ -230,13 +230,23 @@ pub fn run_offline(
     let landmarks: serde_json::Map<String, serde_json::Value> = proc_
         .last_landmarks
         .iter()
-        .map(|(k, p)| {
-            (
-                k.clone(),
-                serde_json::json!({"x": round4(p.x), "y": round4(p.y), "z": round4(p.z)}),
-            )
-        })
+        .map(|(k, p)| (k.clone(), point_json(*p)))
         .collect();
+    // The fitted body's own landmarks, by the template's definitions (horizontal
+    // sections of the avatar): once per run, not per frame.
+    let mut body_landmarks = serde_json::Map::new();
+    if let Some(avatar) = proc_.avatar() {
+        let t0 = std::time::Instant::now();
+        match crate::body::surface_landmarks(&avatar) {
+            Ok(l) => {
+                for (k, p) in l.named() {
+                    body_landmarks.insert(k.into(), point_json(p));
+                }
+            }
+            Err(e) => messages.push(format!("the fitted body's landmarks: {e}")),
+        }
+        timings.add("body_landmarks", t0.elapsed().as_secs_f64() * 1e3);
+    }
     let report = serde_json::json!({
         "measurements_mm": meas,
         "frames": proc_.counts,
@@ -245,6 +255,7 @@ pub fn run_offline(
         "max_frame_step_mm": steps,
         "settled_step_mm": settled_steps,
         "landmarks": landmarks,
+        "body_landmarks": body_landmarks,
         "fit": proc_.last_fit,
         "messages": messages,
         "series": series,
@@ -254,6 +265,11 @@ pub fn run_offline(
         avatar: proc_.avatar().map(|a| (*a).clone()),
         last,
     }
+}
+
+/// A station-frame point as report.json writes it (metres, 0.1 mm).
+fn point_json(p: glam::DVec3) -> serde_json::Value {
+    serde_json::json!({"x": round4(p.x), "y": round4(p.y), "z": round4(p.z)})
 }
 
 /// Largest change of each shown (smoothed) measurement between consecutive fitted frames
