@@ -1175,7 +1175,13 @@ impl BackgroundModel {
             }
             let [cx, cy] = self.band_cells[k];
             let (cx, cy) = (cx as usize, cy as usize);
-            let bridged = self.coarse[cy * cw + cx] == BRIDGED;
+            // A changed pixel keeps its cell's verdict when the cell was bridged, or when
+            // the cell's own sample was foreground in the shadow zone: there the shadow
+            // tolerance explains a shaded shoe's heel like the floor's shadow, and
+            // clearing those pixels would cut a far foot off the leg it touches.
+            let label = self.coarse[cy * cw + cx];
+            let bridged =
+                label == BRIDGED || (label == MASK_ON && self.coarse_model.zone[cy * cw + cx] != 0);
             for dy in 0..COARSE as usize {
                 for dx in 0..COARSE as usize {
                     let (x, y) = (cx * COARSE as usize + dx, cy * COARSE as usize + dy);
