@@ -1610,6 +1610,50 @@ mod tests {
         assert_eq!(c[2 * 3 + 1], BRIDGED);
     }
 
+    /// A far foot joined to the near leg by a shaded heel: the coarse test samples the
+    /// heel's lit pixels (foreground), the full-resolution band sees mostly shadow-like
+    /// pixels between them. In the shadow zone the cell's changed pixels stay body, so the
+    /// mask stays one piece.
+    #[test]
+    fn a_shaded_heel_does_not_cut_the_foot_off_in_the_shadow_zone() {
+        let (w, h) = (96u32, 90u32);
+        let back = |x: u32, y: u32| -> [i32; 3] {
+            let n = ((x * 7 + y * 13) % 5) as i32 - 2;
+            [140 + n, 136 + n, 128 + n]
+        };
+        let frame = |person: bool| {
+            RgbImage::from_fn(w, h, |x, y| {
+                let mut c = back(x, y);
+                if person {
+                    let leg = (60..68).contains(&x) && (10..80).contains(&y);
+                    let foot = (20..52).contains(&x) && (70..80).contains(&y);
+                    let heel = (52..60).contains(&x) && (74..78).contains(&y);
+                    if leg || foot || (heel && x % 2 == 0 && y % 2 == 0) {
+                        c = [40, 50, 150];
+                    } else if heel {
+                        c = c.map(|v| v * 7 / 10);
+                    }
+                }
+                image::Rgb(c.map(|v| v.clamp(0, 255) as u8))
+            })
+        };
+        let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+        for _ in 0..3 {
+            m.learn(&frame(false)).unwrap();
+        }
+        // The floor (rows 60 and below) is the shadow zone.
+        let mut zone = Mask::new(w, h);
+        zone.data[(60 * w) as usize..].fill(255);
+        m.set_shadow_zone(&zone).unwrap();
+        let mut mask = Mask::new(1, 1);
+        m.segment(&frame(true), &mut mask).unwrap();
+        let mut runs = RunComponents::default();
+        runs.compute(&mask.data, w, h, true, true);
+        assert_eq!(runs.components.len(), 1, "the foot is cut off");
+        assert!(mask.get(30, 75), "the foot is lost");
+        assert!(mask.get(55, 76), "the heel is not body");
+    }
+
     #[test]
     fn the_edge_score_is_linear_in_the_covered_fraction() {
         let back = [200u8, 180, 160];
