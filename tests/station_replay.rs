@@ -294,3 +294,47 @@ fn a_body_cut_off_by_the_frame_is_refused_with_the_reason() {
     assert!(err.contains("cut off"), "{err}");
     assert!(!out.exists(), "nothing may be written");
 }
+
+/// A deep belly that meets the hands in the side view (evaluation-set member 8 with its
+/// waist 10 % deeper): the side silhouette merges them, and the fit must not place the
+/// body half a hand's reach forward (it did: chest -54 mm, mean surface distance 41 mm).
+#[test]
+fn a_hand_in_front_of_the_belly_does_not_move_the_body_forward() {
+    let dir = tmp("belly");
+    let rec = dir.join("warped");
+    let mut cfg = fitstation::synth::set_member(1000, 8, 12);
+    cfg.subject.warp = fitstation::synth::subject::BodyWarp {
+        width: 0.0,
+        depth: 0.10,
+        at: 0.6,
+    };
+    cfg.subject_frames = 4;
+    cfg.format = FrameFormat::Png;
+    render_recording(&cfg, &rec).expect("render");
+    let out = dir.join("out");
+    let o = fitstation(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        o.status.success(),
+        "replay failed: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let truth_mesh =
+        fitstation::mesh::io::read_obj(&truth_dir(&rec).join("mesh.obj"), None).unwrap();
+    let avatar = fitstation::mesh::io::read_obj(&out.join("avatar.obj"), None).unwrap();
+    let d = fitstation::eval::distance::surface_distance(&avatar.positions, &truth_mesh)
+        .expect("distance");
+    eprintln!(
+        "surface distance: mean {:.1} mm, p95 {:.1} mm",
+        d.mean_mm, d.p95_mm
+    );
+    assert!(
+        d.mean_mm < 25.0,
+        "mean surface distance {:.1} mm",
+        d.mean_mm
+    );
+}

@@ -256,3 +256,47 @@ fn a_posed_subject_moves_its_limbs_only() {
     };
     assert!((top(&a) - top(&b)).length() < 1e-3);
 }
+
+#[test]
+fn a_warped_subject_changes_about_its_height_only() {
+    if !body_available() {
+        return;
+    }
+    use fitstation::synth::subject::{BodyWarp, SubjectParams};
+    let rest = SubjectParams::sample(5);
+    let warped = SubjectParams {
+        warp: BodyWarp {
+            width: 0.0,
+            depth: 0.10,
+            at: 0.6,
+        },
+        ..rest.clone()
+    };
+    let (a, b) = (
+        synth::subject_mesh(&rest).expect("rest"),
+        synth::subject_mesh(&warped).expect("warped"),
+    );
+    let (ma, mb) = (
+        fitstation::measure::measure(&a).expect("measure rest"),
+        fitstation::measure::measure(&b).expect("measure warped"),
+    );
+    let (ra, rb) = (ma.to_report_map(), mb.to_report_map());
+    let get = |m: &serde_json::Map<String, serde_json::Value>, k: &str| {
+        m.get(k).and_then(|v| v.as_f64()).expect(k)
+    };
+    // The waist (at about 0.6 of the stature) grows; stature and thighs (far below) do
+    // not; the arms are left where they were.
+    let dw = get(&rb, "waist_girth") - get(&ra, "waist_girth");
+    eprintln!("waist grows by {dw:.1} mm");
+    assert!(dw > 10.0, "waist grows by {dw} mm");
+    assert!((get(&rb, "stature") - get(&ra, "stature")).abs() < 0.5);
+    let dt = get(&rb, "thigh_girth_left") - get(&ra, "thigh_girth_left");
+    assert!(dt.abs() < 0.2 * dw, "thigh changes by {dt} mm");
+    let arm_tip = |m: &fitstation::mesh::TriMesh| {
+        *m.positions
+            .iter()
+            .max_by(|p, q| p.x.total_cmp(&q.x))
+            .expect("vertices")
+    };
+    assert!((arm_tip(&a) - arm_tip(&b)).length() < 1e-9);
+}

@@ -47,6 +47,10 @@ const FIRST_FIT_SOLVES: usize = 4;
 
 /// Height (fraction of stature) at which the candidate is placed on the silhouettes.
 const PLACEMENT_LEVEL: f64 = 0.55;
+/// Largest front-to-back offset of the trunk's centre at [`PLACEMENT_LEVEL`] from the
+/// landmarks' torso point, as a fraction of stature (a posture's lean between the two
+/// heights; the evaluation sets measure 3-19 mm, i.e. up to about 0.011).
+const PLACEMENT_MAX_LEAN: f64 = 0.02;
 
 /// Options of the fit.
 #[derive(Debug, Clone)]
@@ -449,9 +453,18 @@ impl Fitter {
         let k = obs.stature_m / stature;
         // Place the body so that its torso's centre at the reference height lands on the
         // silhouettes' section centre there (x from the front view, z from the side).
-        let seen = shape::section_centre(f, sd, PLACEMENT_LEVEL * obs.stature_m, obs.torso_point)
-            .map(|c| c.0)
-            .unwrap_or(obs.torso_point);
+        let mut seen =
+            shape::section_centre(f, sd, PLACEMENT_LEVEL * obs.stature_m, obs.torso_point)
+                .map(|c| c.0)
+                .unwrap_or(obs.torso_point);
+        // Two views cannot tell a hand held in front of the belly from the belly: where the
+        // side silhouette merges them, the section's centre moves forward by half the
+        // hand's reach. The landmarks' torso point (the side contour's axis, arm parts
+        // left out) bounds it: the trunk's centre lies within a posture's lean of it.
+        let lean = PLACEMENT_MAX_LEAN * obs.stature_m;
+        seen.z = seen
+            .z
+            .clamp(obs.torso_point.z - lean, obs.torso_point.z + lean);
         let own = shape::torso_centre(
             &body.positions,
             &self.edges,

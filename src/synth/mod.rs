@@ -851,6 +851,16 @@ pub struct SynthSetArgs {
     /// Legs turned from the rest pose, degrees (positive: apart).
     #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
     pub legs_deg: f64,
+    /// Bodies outside the shape library: trunk and legs this much wider (fraction, e.g.
+    /// 0.06) about `--warp-at`.
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub warp_width: f64,
+    /// ... and this much deeper, front to back (fraction).
+    #[arg(long, default_value_t = 0.0, allow_hyphen_values = true)]
+    pub warp_depth: f64,
+    /// Height of the warp, fraction of stature (0.52 hips, 0.6 waist, 0.72 chest).
+    #[arg(long, default_value_t = 0.6)]
+    pub warp_at: f64,
 }
 
 /// The subject of member `i` of an evaluation set: alternating genders, builds spread
@@ -874,6 +884,11 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
         cfg.subject.pose = subject::LimbPose {
             arms_deg: args.arms_deg,
             legs_deg: args.legs_deg,
+        };
+        cfg.subject.warp = subject::BodyWarp {
+            width: args.warp_width,
+            depth: args.warp_depth,
+            at: args.warp_at,
         };
         let out = args.out.join(format!("subject_{i:02}"));
         let s = render_recording(&cfg, &out)?;

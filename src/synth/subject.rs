@@ -50,6 +50,82 @@ pub struct SubjectParams {
     /// Arms and legs away from the library's rest A-pose (none by default).
     #[serde(default, skip_serializing_if = "LimbPose::is_rest")]
     pub pose: LimbPose,
+    /// A body outside the library's span: trunk and legs widened or deepened about a
+    /// height (none by default).
+    #[serde(default, skip_serializing_if = "BodyWarp::is_none")]
+    pub warp: BodyWarp,
+}
+
+/// A smooth change of a body's proportions that no macro parameter makes: at heights
+/// near `at` (fraction of stature), the trunk and legs are scaled about the body's axis
+/// by `1 + width` sideways and `1 + depth` front to back, the scale fading as a Gaussian
+/// of height (sigma `SIGMA_OF_STATURE` of the stature). The arms are left alone.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct BodyWarp {
+    pub width: f64,
+    pub depth: f64,
+    pub at: f64,
+}
+
+impl BodyWarp {
+    /// Height spread of the warp, as a fraction of stature.
+    pub const SIGMA_OF_STATURE: f64 = 0.06;
+
+    pub fn is_none(&self) -> bool {
+        self.width == 0.0 && self.depth == 0.0
+    }
+}
+
+/// Applies `warp` to a library body in the canonical frame (soles on y = 0, centred on
+/// x = 0, the template's vertex order).
+fn warp_body(
+    mesh: &mut TriMesh,
+    template: &crate::body::Template,
+    warp: BodyWarp,
+) -> Result<(), SubjectError> {
+    use crate::fit::correspond::Part;
+    use crate::fit::{parts, pose as fpose};
+    if warp.is_none() {
+        return Ok(());
+    }
+    if mesh.vertex_count() != template.mesh.vertex_count() {
+        return Err(SubjectError::Invalid(
+            "warping needs the template's vertex order".into(),
+        ));
+    }
+    let b = mesh
+        .bounds()
+        .ok_or_else(|| SubjectError::Invalid("empty mesh".into()))?;
+    let stature = b.size().y;
+    let yc = b.min.y + warp.at * stature;
+    let sigma = BodyWarp::SIGMA_OF_STATURE * stature;
+    let lm = fpose::template_part_landmarks(template).map_err(SubjectError::Invalid)?;
+    let labels = parts::label_parts(&template.mesh, &template.mesh.one_rings(), &lm);
+    let is_arm = |l: &Part| matches!(l, Part::LeftArm | Part::RightArm);
+    // The axis: the middle of the trunk's extent near the warp's height.
+    let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+    for (p, l) in mesh.positions.iter().zip(&labels) {
+        if !is_arm(l) && (p.y - yc).abs() < sigma {
+            lo = lo.min(*p);
+            hi = hi.max(*p);
+        }
+    }
+    if !lo.is_finite() {
+        return Err(SubjectError::Invalid(format!(
+            "no trunk at {:.2} of the stature to warp",
+            warp.at
+        )));
+    }
+    let c = 0.5 * (lo + hi);
+    for (p, l) in mesh.positions.iter_mut().zip(&labels) {
+        if is_arm(l) {
+            continue;
+        }
+        let g = (-0.5 * ((p.y - yc) / sigma).powi(2)).exp();
+        p.x = c.x + (p.x - c.x) * (1.0 + warp.width * g);
+        p.z = c.z + (p.z - c.z) * (1.0 + warp.depth * g);
+    }
+    Ok(())
 }
 
 /// Limbs of a synthetic subject turned from the shape library's rest A-pose, degrees:
@@ -168,6 +244,7 @@ impl SubjectParams {
             shape: ShapeLibrary::sample_adult(seed),
             stature_m: None,
             pose: LimbPose::default(),
+            warp: BodyWarp::default(),
         }
     }
 }
@@ -201,6 +278,7 @@ pub fn library_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError>
     let lib = shape_library()?;
     let mut mesh = lib.body(&params.shape.clamp());
     pose_limbs(&mut mesh, lib.template(), params.pose)?;
+    warp_body(&mut mesh, lib.template(), params.warp)?;
     mesh.validate().map_err(SubjectError::Invalid)?;
     let b = mesh
         .bounds()
