@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Generality probes of the station beyond the synthetic renderer's own look: posed
-# subjects, a white / black / grey studio backdrop, other resolutions and JPEG frames.
+# subjects, bodies outside the shape library, a white / black / grey studio backdrop,
+# other resolutions and JPEG frames.
 # Needs python3 with opencv-python-headless and numpy. Usage: bash tools/probes.sh [DIR]
 set -euo pipefail
 dir=${1:-/tmp/fitstation-probes}
@@ -22,6 +23,15 @@ for pose in "12 4" "-10 -3"; do
   out="$dir/pose_a$1_l$2"
   [ -d "$out" ] || "$bin" synth-set --out "$out" --count 12 --arms-deg "$1" --legs-deg "$2" > /dev/null
   echo "== arms $1 deg, legs $2 deg from the rest A-pose (fitstation eval)"
+  "$bin" eval "$out"/subject_?? 2>&1 | sed -n '/^per measurement/,/^$/p'
+done
+# Bodies outside the shape library's span: a belly 10 % deeper about the waist; hips 6 %
+# wider and 4 % flatter.
+for warp in "0 0.10 0.6" "0.06 -0.04 0.52"; do
+  set -- $warp
+  out="$dir/warp_w$1_d$2_at$3"
+  [ -d "$out" ] || "$bin" synth-set --out "$out" --count 12 --warp-width "$1" --warp-depth "$2" --warp-at "$3" > /dev/null
+  echo "== trunk $1 wider, $2 deeper about $3 of the stature (fitstation eval)"
   "$bin" eval "$out"/subject_?? 2>&1 | sed -n '/^per measurement/,/^$/p'
 done
 base="$dir/base/subject_00"
