@@ -31,6 +31,16 @@ fn fitstation(args: &[&str]) -> std::process::Output {
         .expect("run fitstation")
 }
 
+/// `fitstation replay REC --out OUT`.
+fn replay(rec: &Path, out: &Path) -> std::process::Output {
+    fitstation(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ])
+}
+
 #[test]
 fn replay_measures_a_synthetic_subject_close_to_its_truth() {
     let dir = tmp("replay");
@@ -121,12 +131,7 @@ fn an_empty_scene_is_an_error_and_writes_nothing() {
     cfg.truth = false;
     render_recording(&cfg, &rec).expect("render");
     let out = dir.join("out");
-    let o = fitstation(&[
-        "replay",
-        rec.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = replay(&rec, &out);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(err.contains("no frame could be fitted"), "{err}");
@@ -312,12 +317,7 @@ fn a_hand_in_front_of_the_belly_does_not_move_the_body_forward() {
     cfg.format = FrameFormat::Png;
     render_recording(&cfg, &rec).expect("render");
     let out = dir.join("out");
-    let o = fitstation(&[
-        "replay",
-        rec.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-    ]);
+    let o = replay(&rec, &out);
     assert!(
         o.status.success(),
         "replay failed: {}",

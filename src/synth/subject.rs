@@ -76,6 +76,27 @@ impl BodyWarp {
     }
 }
 
+/// The template's part of every vertex of `mesh`, which must be in the template's vertex
+/// order (`what` names the caller in the error).
+fn part_labels(
+    mesh: &TriMesh,
+    template: &crate::body::Template,
+    what: &str,
+) -> Result<Vec<crate::fit::correspond::Part>, SubjectError> {
+    use crate::fit::{parts, pose as fpose};
+    if mesh.vertex_count() != template.mesh.vertex_count() {
+        return Err(SubjectError::Invalid(format!(
+            "{what} needs the template's vertex order"
+        )));
+    }
+    let lm = fpose::template_part_landmarks(template).map_err(SubjectError::Invalid)?;
+    Ok(parts::label_parts(
+        &template.mesh,
+        &template.mesh.one_rings(),
+        &lm,
+    ))
+}
+
 /// Applies `warp` to a library body in the canonical frame (soles on y = 0, centred on
 /// x = 0, the template's vertex order).
 fn warp_body(
@@ -84,23 +105,16 @@ fn warp_body(
     warp: BodyWarp,
 ) -> Result<(), SubjectError> {
     use crate::fit::correspond::Part;
-    use crate::fit::{parts, pose as fpose};
     if warp.is_none() {
         return Ok(());
     }
-    if mesh.vertex_count() != template.mesh.vertex_count() {
-        return Err(SubjectError::Invalid(
-            "warping needs the template's vertex order".into(),
-        ));
-    }
+    let labels = part_labels(mesh, template, "warping")?;
     let b = mesh
         .bounds()
         .ok_or_else(|| SubjectError::Invalid("empty mesh".into()))?;
     let stature = b.size().y;
     let yc = b.min.y + warp.at * stature;
     let sigma = BodyWarp::SIGMA_OF_STATURE * stature;
-    let lm = fpose::template_part_landmarks(template).map_err(SubjectError::Invalid)?;
-    let labels = parts::label_parts(&template.mesh, &template.mesh.one_rings(), &lm);
     let is_arm = |l: &Part| matches!(l, Part::LeftArm | Part::RightArm);
     // The axis: the middle of the trunk's extent near the warp's height.
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
@@ -161,17 +175,11 @@ fn pose_limbs(
     pose: LimbPose,
 ) -> Result<(), SubjectError> {
     use crate::fit::correspond::Part;
-    use crate::fit::{parts, pose as fpose};
+    use crate::fit::pose as fpose;
     if pose.is_rest() {
         return Ok(());
     }
-    if mesh.vertex_count() != template.mesh.vertex_count() {
-        return Err(SubjectError::Invalid(
-            "posing needs the template's vertex order".into(),
-        ));
-    }
-    let lm = fpose::template_part_landmarks(template).map_err(SubjectError::Invalid)?;
-    let labels = parts::label_parts(&template.mesh, &template.mesh.one_rings(), &lm);
+    let labels = part_labels(mesh, template, "posing")?;
     let joints = fpose::PoseJoints::new(template);
     let limbs = [
         (
