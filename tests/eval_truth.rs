@@ -171,6 +171,11 @@ fn truth_scores_zero_and_a_shrunk_body_reports_the_shrink() {
     assert!(text.contains("hip_girth") && text.contains("MAE"), "{text}");
     let html = std::fs::read_to_string(report_dir.join("index.html")).unwrap();
     assert!(html.contains("<svg") && html.contains("data:image/png;base64,"));
+    // The shrunk result's report carries the shrunk truth landmarks.
+    assert!(
+        html.contains("Landmarks: silhouettes"),
+        "no landmark table in the report"
+    );
     assert!(
         !html.contains("src=\"http") && !html.contains("href=\"http"),
         "external asset in the report"

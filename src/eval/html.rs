@@ -7,7 +7,7 @@
 //! the synthetic renderer's rasteriser through the recording's calibration) over the
 //! first frame with the subject, with the true silhouette's outline.
 
-use super::{EvalRow, EvalTable};
+use super::{EvalRow, EvalTable, LandmarkSource};
 use crate::camera::View;
 use crate::mesh::TriMesh;
 use crate::recording::Recording;
@@ -357,6 +357,38 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         );
     }
     s.push_str("</table>");
+    for (source, title) in [
+        (
+            LandmarkSource::Silhouettes,
+            "Landmarks: silhouettes of the last fitted frame (mm)",
+        ),
+        (
+            LandmarkSource::FittedBody,
+            "Landmarks: the fitted body's own (mm)",
+        ),
+    ] {
+        let rows = table.landmark_summary(source);
+        if rows.is_empty() {
+            continue;
+        }
+        let _ = write!(
+            s,
+            "<h2>{}</h2><table><tr><th>landmark</th><th>subjects</th><th>mean 3-D distance</th><th>mean |height error|</th><th>worst |height error|</th></tr>",
+            esc(title)
+        );
+        for l in rows {
+            let _ = write!(
+                s,
+                "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.1}</td><td>{:.1}</td><td>{:.1}</td></tr>",
+                esc(&l.name),
+                l.subjects,
+                l.mean_distance_mm,
+                l.mean_abs_height_mm,
+                l.worst_abs_height_mm
+            );
+        }
+        s.push_str("</table>");
+    }
     let timings = table.timing_summary();
     if !timings.is_empty() {
         s.push_str("<h2>Stage timings (ms)</h2><table><tr><th>stage</th><th>median</th><th>worst p95</th></tr>");

@@ -270,6 +270,24 @@ fn station_landmark_name(truth_name: &str) -> String {
     }
 }
 
+/// Which landmarks of a report: the silhouettes' (`landmarks`) or the fitted body's own
+/// (`body_landmarks`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum LandmarkSource {
+    Silhouettes,
+    FittedBody,
+}
+
+/// One landmark's errors over a set (see [`EvalTable::landmark_summary`]).
+#[derive(Debug, Clone, Serialize)]
+pub struct LandmarkSummary {
+    pub name: String,
+    pub subjects: usize,
+    pub mean_distance_mm: f64,
+    pub mean_abs_height_mm: f64,
+    pub worst_abs_height_mm: f64,
+}
+
 /// Landmark errors of one source of a report against the truth, millimetres, keyed by
 /// the truth's names.
 #[derive(Debug, Clone, Default, Serialize)]
@@ -396,6 +414,33 @@ impl EvalTable {
     }
 
     /// Stage timings over subjects: median of the medians and the largest p95.
+    /// Per landmark of one source, over the rows that report it: mean 3-D distance,
+    /// mean and worst |height error|, millimetres (truth's names, sorted).
+    pub fn landmark_summary(&self, source: LandmarkSource) -> Vec<LandmarkSummary> {
+        let mut by: BTreeMap<&String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+        for r in &self.rows {
+            let l = match source {
+                LandmarkSource::Silhouettes => &r.landmarks,
+                LandmarkSource::FittedBody => &r.body_landmarks,
+            };
+            for (k, d) in &l.distance_mm {
+                let e = by.entry(k).or_default();
+                e.0.push(*d);
+                e.1.extend(l.height_mm.get(k).map(|h| h.abs()));
+            }
+        }
+        let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
+        by.into_iter()
+            .map(|(k, (d, h))| LandmarkSummary {
+                name: k.clone(),
+                subjects: d.len(),
+                mean_distance_mm: mean(&d),
+                mean_abs_height_mm: mean(&h),
+                worst_abs_height_mm: h.iter().copied().fold(0.0, f64::max),
+            })
+            .collect()
+    }
+
     pub fn timing_summary(&self) -> BTreeMap<String, StageTiming> {
         let mut by: BTreeMap<String, Vec<StageTiming>> = BTreeMap::new();
         for r in &self.rows {
@@ -471,38 +516,27 @@ impl EvalTable {
                 m.worst_subject
             ));
         }
-        for (title, pick) in [
+        for (source, title) in [
             (
+                LandmarkSource::Silhouettes,
                 "landmark, silhouettes of the last fitted frame",
-                (|r: &EvalRow| &r.landmarks) as fn(&EvalRow) -> &LandmarkErrors,
             ),
-            ("landmark, the fitted body's own", |r: &EvalRow| {
-                &r.body_landmarks
-            }),
+            (
+                LandmarkSource::FittedBody,
+                "landmark, the fitted body's own",
+            ),
         ] {
-            let mut by: BTreeMap<&String, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
-            for r in &self.rows {
-                let l = pick(r);
-                for (k, d) in &l.distance_mm {
-                    let e = by.entry(k).or_default();
-                    e.0.push(*d);
-                    e.1.extend(l.height_mm.get(k));
-                }
-            }
-            if by.is_empty() {
+            let rows = self.landmark_summary(source);
+            if rows.is_empty() {
                 continue;
             }
             s.push_str(&format!(
                 "\n{title:<48} mean 3-D mm  height: mean |err| mm  worst |err| mm\n"
             ));
-            for (k, (d, hgt)) in by {
-                let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len().max(1) as f64;
-                let abs: Vec<f64> = hgt.iter().map(|x| x.abs()).collect();
-                let worst = abs.iter().copied().fold(0.0, f64::max);
+            for l in rows {
                 s.push_str(&format!(
-                    "{k:<48} {:>11.1} {:>22.1} {worst:>15.1}\n",
-                    mean(&d),
-                    mean(&abs)
+                    "{:<48} {:>11.1} {:>22.1} {:>15.1}\n",
+                    l.name, l.mean_distance_mm, l.mean_abs_height_mm, l.worst_abs_height_mm
                 ));
             }
         }
