@@ -323,6 +323,14 @@ fn a_hand_in_front_of_the_belly_does_not_move_the_body_forward() {
         "replay failed: {}",
         String::from_utf8_lossy(&o.stderr)
     );
+    // The table's timings: per frame pair, and the fitted body's landmarks once per run.
+    let table = String::from_utf8_lossy(&o.stdout);
+    let per_pair = table
+        .lines()
+        .find(|l| l.starts_with("median ms per frame pair:"))
+        .unwrap_or_else(|| panic!("no per-pair timings in {table}"));
+    assert!(!per_pair.contains("body_landmarks"), "{per_pair}");
+    assert!(table.contains("once per run: body_landmarks"), "{table}");
     let truth_mesh =
         fitstation::mesh::io::read_obj(&truth_dir(&rec).join("mesh.obj"), None).unwrap();
     let avatar = fitstation::mesh::io::read_obj(&out.join("avatar.obj"), None).unwrap();
