@@ -357,24 +357,15 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         );
     }
     s.push_str("</table>");
-    for (source, title) in [
-        (
-            LandmarkSource::Silhouettes,
-            "Landmarks: silhouettes of the last fitted frame (mm)",
-        ),
-        (
-            LandmarkSource::FittedBody,
-            "Landmarks: the fitted body's own (mm)",
-        ),
-    ] {
+    for source in LandmarkSource::ALL {
         let rows = table.landmark_summary(source);
         if rows.is_empty() {
             continue;
         }
         let _ = write!(
             s,
-            "<h2>{}</h2><table><tr><th>landmark</th><th>subjects</th><th>mean 3-D distance</th><th>mean |height error|</th><th>worst |height error|</th></tr>",
-            esc(title)
+            "<h2>Landmarks: {} (mm)</h2><table><tr><th>landmark</th><th>subjects</th><th>mean 3-D distance</th><th>mean |height error|</th><th>worst |height error|</th></tr>",
+            esc(source.title())
         );
         for l in rows {
             let _ = write!(

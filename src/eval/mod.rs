@@ -278,6 +278,18 @@ pub enum LandmarkSource {
     FittedBody,
 }
 
+impl LandmarkSource {
+    pub const ALL: [LandmarkSource; 2] = [LandmarkSource::Silhouettes, LandmarkSource::FittedBody];
+
+    /// What the tables call it (after "landmark, " / "Landmarks: ").
+    pub fn title(self) -> &'static str {
+        match self {
+            LandmarkSource::Silhouettes => "silhouettes of the last fitted frame",
+            LandmarkSource::FittedBody => "the fitted body's own",
+        }
+    }
+}
+
 /// One landmark's errors over a set (see [`EvalTable::landmark_summary`]).
 #[derive(Debug, Clone, Serialize)]
 pub struct LandmarkSummary {
@@ -413,7 +425,6 @@ impl EvalTable {
             .collect()
     }
 
-    /// Stage timings over subjects: median of the medians and the largest p95.
     /// Per landmark of one source, over the rows that report it: mean 3-D distance,
     /// mean and worst |height error|, millimetres (truth's names, sorted).
     pub fn landmark_summary(&self, source: LandmarkSource) -> Vec<LandmarkSummary> {
@@ -441,6 +452,7 @@ impl EvalTable {
             .collect()
     }
 
+    /// Stage timings over subjects: median of the medians and the largest p95.
     pub fn timing_summary(&self) -> BTreeMap<String, StageTiming> {
         let mut by: BTreeMap<String, Vec<StageTiming>> = BTreeMap::new();
         for r in &self.rows {
@@ -516,22 +528,14 @@ impl EvalTable {
                 m.worst_subject
             ));
         }
-        for (source, title) in [
-            (
-                LandmarkSource::Silhouettes,
-                "landmark, silhouettes of the last fitted frame",
-            ),
-            (
-                LandmarkSource::FittedBody,
-                "landmark, the fitted body's own",
-            ),
-        ] {
+        for source in LandmarkSource::ALL {
             let rows = self.landmark_summary(source);
             if rows.is_empty() {
                 continue;
             }
             s.push_str(&format!(
-                "\n{title:<48} mean 3-D mm  height: mean |err| mm  worst |err| mm\n"
+                "\n{:<48} mean 3-D mm  height: mean |err| mm  worst |err| mm\n",
+                format!("landmark, {}", source.title())
             ));
             for l in rows {
                 s.push_str(&format!(

@@ -48,7 +48,7 @@ impl Part {
         Part::LeftLeg,
         Part::RightLeg,
     ];
-    fn is_arm(self) -> bool {
+    pub fn is_arm(self) -> bool {
         matches!(self, Part::LeftArm | Part::RightArm)
     }
 }

@@ -104,7 +104,6 @@ fn warp_body(
     template: &crate::body::Template,
     warp: BodyWarp,
 ) -> Result<(), SubjectError> {
-    use crate::fit::correspond::Part;
     if warp.is_none() {
         return Ok(());
     }
@@ -115,11 +114,10 @@ fn warp_body(
     let stature = b.size().y;
     let yc = b.min.y + warp.at * stature;
     let sigma = BodyWarp::SIGMA_OF_STATURE * stature;
-    let is_arm = |l: &Part| matches!(l, Part::LeftArm | Part::RightArm);
     // The axis: the middle of the trunk's extent near the warp's height.
     let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
     for (p, l) in mesh.positions.iter().zip(&labels) {
-        if !is_arm(l) && (p.y - yc).abs() < sigma {
+        if !l.is_arm() && (p.y - yc).abs() < sigma {
             lo = lo.min(*p);
             hi = hi.max(*p);
         }
@@ -132,7 +130,7 @@ fn warp_body(
     }
     let c = 0.5 * (lo + hi);
     for (p, l) in mesh.positions.iter_mut().zip(&labels) {
-        if is_arm(l) {
+        if l.is_arm() {
             continue;
         }
         let g = (-0.5 * ((p.y - yc) / sigma).powi(2)).exp();
