@@ -340,6 +340,32 @@ fn synthetic_recordings_segment_and_give_landmark_heights() {
         worst_fitted[4] * 1e3,
         worst_fitted[5] * 1e3
     );
+    // Mean signed and mean absolute height error over the fitted frames.
+    let (mut sum, mut abs, mut n) = ([0.0f64; 6], [0.0f64; 6], [0usize; 6]);
+    for s in &fitted {
+        for k in 0..6 {
+            if let Some(e) = s.height_err[k] {
+                sum[k] += e;
+                abs[k] += e.abs();
+                n[k] += 1;
+            }
+        }
+    }
+    let means: Vec<String> = (0..6)
+        .map(|k| {
+            let m = n[k].max(1) as f64;
+            format!(
+                "{} {:+.1} ({:.1})",
+                HEIGHTS[k].1,
+                1e3 * sum[k] / m,
+                1e3 * abs[k] / m
+            )
+        })
+        .collect();
+    println!(
+        "frames the station fits: mean height error mm (mean |error|): {}",
+        means.join(", ")
+    );
     assert!(!scores.is_empty());
     assert!(missing.is_empty(), "landmarks not found: {missing:?}");
     assert!(worst_iou >= MIN_IOU, "IoU {worst_iou}");

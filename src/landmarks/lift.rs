@@ -13,6 +13,7 @@
 
 use super::analysis::{self, FrontFeatures, SideFeatures};
 use super::graze::GrazeProfile;
+use super::zones;
 use super::{LandmarkName, NamedPoint, SilhouetteOptions, SilhouetteResult, Verdict};
 use crate::camera::{Camera, StationCalibration};
 use glam::{DVec2, DVec3};
@@ -220,6 +221,21 @@ fn grazed_height(
     p.y - profile.apparent_offset((c.y - p.y) / d, size)
 }
 
+/// The normalised front ray through the meeting point of the flanks of the gap whose
+/// traced apex is contour point `apex` ([`zones::wedge_apex`]), with the pixel's size on
+/// the front plane z = 0 taken at the apex.
+fn wedge_point(front: &Camera, plane: &[DVec2], apex: usize) -> Option<DVec2> {
+    let top = *plane.get(apex)?;
+    let n = plane_point_to_normalized(front, top)?;
+    let fx = front.intrinsics.fx;
+    if fx.is_nan() || fx <= 0.0 {
+        return None;
+    }
+    let px = (to_plane(front, n + DVec2::new(1.0 / fx, 0.0), PlaneAxis::Z, 0.0) - top).length();
+    let p = zones::wedge_apex(plane, apex, px)?;
+    plane_point_to_normalized(front, p)
+}
+
 /// Normalised coordinates of the front ray through a point of the front plane z = 0.
 fn plane_point_to_normalized(front: &Camera, p: DVec2) -> Option<DVec2> {
     let c = front.camera_from_station.apply(DVec3::new(p.x, p.y, 0.0));
@@ -274,7 +290,11 @@ pub fn lift_all(
         (AcromionRight, ff.acromion_right),
     ] {
         if let Some(i) = idx {
-            let mut p = lift_idx(i);
+            let mut p = match name {
+                ArmpitLeft | ArmpitRight => wedge_point(front, &out.front.plane, i)
+                    .map_or_else(|| lift_idx(i), |n| lift_front_ray(front, n, &axis, iters)),
+                _ => lift_idx(i),
+            };
             let section = profiles.and_then(|t| match name {
                 Crotch => t.crotch.as_ref(),
                 AcromionLeft => t.acromion_left.as_ref(),
