@@ -89,22 +89,30 @@ fn replay_measures_a_synthetic_subject_close_to_its_truth() {
             "{key}: fitted {got:.1} mm, truth {want:.1} mm"
         );
     }
-    // The fitted body's own landmarks (issue 4's 10 mm on heights): the truth's
-    // `left_armpit` is the report's `armpit_left`.
-    for (truth_name, name) in [
-        ("crotch", "crotch"),
-        ("left_armpit", "armpit_left"),
-        ("right_armpit", "armpit_right"),
-        ("left_acromion", "acromion_left"),
-        ("right_acromion", "acromion_right"),
-        ("head_top", "head_top"),
-    ] {
-        let got = report["body_landmarks"][name]["y"]
-            .as_f64()
-            .unwrap_or_else(|| panic!("no body landmark {name} in report"));
-        let err = (got - truth.landmarks[truth_name][1]) * 1000.0;
-        eprintln!("{name}: fitted body height error {err:+.1} mm");
-        assert!(err.abs() < 10.0, "{name}: height error {err:+.1} mm");
+    // Issue 4's 10 mm on landmark heights for the fitted body's own (`body_landmarks`).
+    // The silhouettes' landmarks smoothed over the fitted frames (`landmarks`) get 12 mm:
+    // what a silhouette shows of the fold under the arm differs from subject to subject
+    // (this seed's armpits are +8 to +10 mm, other default seeds' -8 mm; see
+    // tests/silhouette_synth.rs). The truth's `left_armpit` is the report's `armpit_left`.
+    for (source, tol_mm) in [("landmarks", 12.0), ("body_landmarks", 10.0)] {
+        for (truth_name, name) in [
+            ("crotch", "crotch"),
+            ("left_armpit", "armpit_left"),
+            ("right_armpit", "armpit_right"),
+            ("left_acromion", "acromion_left"),
+            ("right_acromion", "acromion_right"),
+            ("head_top", "head_top"),
+        ] {
+            let got = report[source][name]["y"]
+                .as_f64()
+                .unwrap_or_else(|| panic!("no {source} {name} in report"));
+            let err = (got - truth.landmarks[truth_name][1]) * 1000.0;
+            eprintln!("{source} {name}: height error {err:+.1} mm");
+            assert!(
+                err.abs() < tol_mm,
+                "{source} {name}: height error {err:+.1} mm"
+            );
+        }
     }
     let avatar = fitstation::mesh::io::read_obj(&out.join("avatar.obj"), None).unwrap();
     let template = fitstation::body::ShapeLibrary::load_default().unwrap();

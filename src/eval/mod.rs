@@ -122,7 +122,7 @@ pub struct EvalRow {
     pub surface: Option<SurfaceDistance>,
     /// Mean mask IoU per view over the frames both hold.
     pub mask_iou: BTreeMap<String, f64>,
-    /// The report's `landmarks` (the silhouettes' of the last fitted frame) against the
+    /// The report's `landmarks` (the silhouettes', smoothed over the fitted frames) against the
     /// truth's.
     pub landmarks: LandmarkErrors,
     /// The report's `body_landmarks` (the fitted avatar's own) against the truth's.
@@ -284,7 +284,7 @@ impl LandmarkSource {
     /// What the tables call it (after "landmark, " / "Landmarks: ").
     pub fn title(self) -> &'static str {
         match self {
-            LandmarkSource::Silhouettes => "silhouettes of the last fitted frame",
+            LandmarkSource::Silhouettes => "silhouettes, smoothed over frames",
             LandmarkSource::FittedBody => "the fitted body's own",
         }
     }

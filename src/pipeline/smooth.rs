@@ -69,9 +69,76 @@ impl SmoothedValue {
     }
 }
 
+/// Named 3-D points (landmarks, metres) smoothed coordinate by coordinate with a
+/// [`SmoothedValue`] each: a subject holding still has one set of landmarks, and a single
+/// frame's crotch or armpit (a gap closed by a few pixels) does not move them.
+#[derive(Debug, Clone, Default)]
+pub struct SmoothedPoints {
+    windows: Vec<(String, [SmoothedValue; 3])>,
+}
+
+impl SmoothedPoints {
+    /// Adds one frame's points (a name not seen this frame keeps its window).
+    pub fn push<'a>(&mut self, points: impl IntoIterator<Item = (&'a str, glam::DVec3)>) {
+        for (name, p) in points {
+            let k = match self.windows.iter().position(|(n, _)| n == name) {
+                Some(k) => k,
+                None => {
+                    self.windows.push((name.to_string(), Default::default()));
+                    self.windows.len() - 1
+                }
+            };
+            for (w, v) in self.windows[k].1.iter_mut().zip(p.to_array()) {
+                // Millimetres, the unit SmoothedValue documents.
+                w.push(1e3 * v);
+            }
+        }
+    }
+    /// The smoothed points (metres), in the order first seen.
+    pub fn values(&self) -> Vec<(String, glam::DVec3)> {
+        self.windows
+            .iter()
+            .filter_map(|(name, [x, y, z])| {
+                Some((
+                    name.clone(),
+                    glam::DVec3::new(x.value()?, y.value()?, z.value()?) * 1e-3,
+                ))
+            })
+            .collect()
+    }
+    pub fn clear(&mut self) {
+        self.windows.clear();
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::DVec3;
+
+    #[test]
+    fn smoothed_points_ignore_a_single_frames_outlier() {
+        let mut s = SmoothedPoints::default();
+        assert!(s.values().is_empty());
+        let armpit = DVec3::new(0.17, 1.25, -0.11);
+        for k in 0..5 {
+            // Frame 2's armpit is 15 mm low (its gap closed by a few pixels); the crotch
+            // is only seen from frame 1 on.
+            let y = if k == 2 { armpit.y - 0.015 } else { armpit.y };
+            let mut frame = vec![("armpit_left", DVec3::new(armpit.x, y, armpit.z))];
+            if k >= 1 {
+                frame.push(("crotch", DVec3::new(0.0, 0.8, -0.1)));
+            }
+            s.push(frame);
+        }
+        let v = s.values();
+        assert_eq!(v.len(), 2);
+        assert_eq!(v[0].0, "armpit_left");
+        assert!((v[0].1 - armpit).length() < 1e-9, "{:?}", v[0].1);
+        assert!((v[1].1 - DVec3::new(0.0, 0.8, -0.1)).length() < 1e-9);
+        s.clear();
+        assert!(s.values().is_empty());
+    }
 
     #[test]
     fn trimmed_mean_ignores_outliers_and_stability_settles() {

@@ -21,7 +21,7 @@ use crate::landmarks::{
 };
 use crate::measure::Measurements;
 use crate::mesh::TriMesh;
-use crate::pipeline::smooth::SmoothedValue;
+use crate::pipeline::smooth::{SmoothedPoints, SmoothedValue};
 use crate::pipeline::timing::FrameTimer;
 use crate::pipeline::{
     FitSnapshot, FramePair, FrameProcessor, MeasurementValue, Phase, ViewOverlay,
@@ -84,7 +84,10 @@ pub struct StationProcessor {
     last_avatar: Option<Arc<TriMesh>>,
     pub last_measurements: Option<Measurements>,
     pub last_fit: Option<FitStats>,
+    /// The silhouettes' landmarks of the subject, smoothed over the fitted frames like
+    /// the girths ([`SmoothedPoints`]).
     pub last_landmarks: Vec<(String, DVec3)>,
+    landmark_windows: SmoothedPoints,
     /// Reused silhouette buffers (masks, contours) of the per-frame path.
     silhouette_result: SilhouetteResult,
 }
@@ -112,6 +115,7 @@ impl StationProcessor {
             last_measurements: None,
             last_fit: None,
             last_landmarks: Vec::new(),
+            landmark_windows: SmoothedPoints::default(),
             silhouette_result: SilhouetteResult::empty(),
         })
     }
@@ -277,12 +281,14 @@ impl StationProcessor {
         timer.lap("measure");
         self.last_avatar = Some(Arc::new(avatar));
         self.last_fit = Some(stats);
-        self.last_landmarks = result
-            .landmarks
-            .points
-            .iter()
-            .map(|p| (p.name.clone(), p.station))
-            .collect();
+        self.landmark_windows.push(
+            result
+                .landmarks
+                .points
+                .iter()
+                .map(|p| (p.name.as_str(), p.station)),
+        );
+        self.last_landmarks = self.landmark_windows.values();
         let phase = if self.is_settled() {
             Phase::Settled
         } else {
@@ -342,6 +348,7 @@ impl FrameProcessor for StationProcessor {
         self.last_measurements = None;
         self.last_fit = None;
         self.last_landmarks.clear();
+        self.landmark_windows.clear();
     }
 }
 
