@@ -308,3 +308,112 @@ fn mp4_random_access_gives_the_same_frames() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// MP4s from other tools: ffmpeg's libx264 writes High profile with B-frames (samples in
+/// decoding order, pictures presented in another order) and closed groups of 12. Every
+/// frame comes back in presentation order, sequentially and by seeking.
+#[test]
+fn mp4_from_ffmpeg_with_b_frames_reads_in_presentation_order() {
+    let have_ffmpeg = std::process::Command::new("ffmpeg")
+        .arg("-version")
+        .output()
+        .is_ok_and(|o| o.status.success());
+    if !have_ffmpeg {
+        println!("SKIPPED: ffmpeg not installed; MP4s with B-frames not checked");
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "ffmpeg is required when CI is set"
+        );
+        return;
+    }
+    let n = 40;
+    let (calib, fr) = frames(n);
+    let png = tmp("bframes-png");
+    write(&png, &calib, &fr, FrameFormat::Png);
+    let dir = tmp("bframes-mp4");
+    std::fs::create_dir_all(&dir).unwrap();
+    std::fs::copy(png.join("station.yaml"), dir.join("station.yaml")).unwrap();
+    for view in ["front", "side"] {
+        let mp4 = dir.join(format!("{view}.mp4"));
+        let out = std::process::Command::new("ffmpeg")
+            .args(["-loglevel", "error", "-y", "-framerate", "30", "-i"])
+            .arg(png.join(view).join("%06d.png"))
+            .args([
+                "-c:v",
+                "libx264",
+                "-profile:v",
+                "high",
+                "-bf",
+                "3",
+                "-g",
+                "12",
+                "-crf",
+                "12",
+                "-pix_fmt",
+                "yuv420p",
+            ])
+            .arg(&mp4)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let probe = std::process::Command::new("ffprobe")
+            .args([
+                "-v",
+                "error",
+                "-show_entries",
+                "stream=has_b_frames",
+                "-of",
+                "csv=p=0",
+            ])
+            .arg(&mp4)
+            .output()
+            .unwrap();
+        let b: u32 = String::from_utf8_lossy(&probe.stdout)
+            .trim()
+            .parse()
+            .unwrap_or(0);
+        assert!(b > 0, "{view}.mp4 has no B-frames to reorder");
+    }
+    let mut r = Recording::open(&dir).unwrap();
+    assert_eq!(r.len(), n);
+    let mut sequential = Vec::new();
+    for k in 0..n {
+        let (f, s) = r.frame_pair(k).unwrap();
+        // Each frame is its own PNG (the square moves 6 px a frame), not a neighbour.
+        let view = |pair: &(RgbImage, RgbImage), v: usize| {
+            if v == 0 {
+                pair.0.clone()
+            } else {
+                pair.1.clone()
+            }
+        };
+        for (v, got) in [(0, &f), (1, &s)] {
+            let own = psnr(got, &view(&fr[k], v));
+            assert!(own > 30.0, "frame {k}: PSNR {own:.1} dB");
+            for j in [k.wrapping_sub(1), k + 1] {
+                if let Some(other) = fr.get(j) {
+                    let o = psnr(got, &view(other, v));
+                    assert!(
+                        own > o + 3.0,
+                        "frame {k} looks like frame {j}: {own:.1} vs {o:.1} dB"
+                    );
+                }
+            }
+        }
+        sequential.push(f);
+    }
+    let mut r = Recording::open(&dir).unwrap();
+    for k in [33, 2, 31, 13, 39, 24, 0, 17] {
+        let (f, _) = r.frame_pair(k).unwrap();
+        assert!(
+            f == sequential[k],
+            "frame {k} differs when reached by seeking"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&png);
+    let _ = std::fs::remove_dir_all(&dir);
+}

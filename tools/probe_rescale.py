@@ -1,15 +1,19 @@
 #!/usr/bin/env python3
 """Copies a PNG recording at another resolution (frames resized by FACTOR, the camera
 matrices of station.yaml scaled to match, pixel centres kept), or re-encoded as JPEG of
-the given quality when FACTOR is `jpeg:Q`. The truth folder is copied beside it.
+the given quality when FACTOR is `jpeg:Q`, or resized by F and encoded by ffmpeg's
+libx264 as other tools write MP4s (High profile, B-frames) when FACTOR is `h264:F`. The
+truth folder is copied beside it.
 
     python3 tools/probe_rescale.py SRC_RECORDING DST_RECORDING 0.5
     python3 tools/probe_rescale.py SRC_RECORDING DST_RECORDING jpeg:70
+    python3 tools/probe_rescale.py SRC_RECORDING DST_RECORDING h264:1.5
 """
 import glob
 import os
 import re
 import shutil
+import subprocess
 import sys
 
 import cv2
@@ -26,8 +30,9 @@ if how.startswith("jpeg:"):
         cv2.imwrite(path[:-4] + ".jpg", cv2.imread(path), [cv2.IMWRITE_JPEG_QUALITY, quality])
         os.remove(path)
     sys.exit(0)
-f = float(how)
-for path in frames:
+h264 = how.startswith("h264:")
+f = float(how.split(":")[1]) if h264 else float(how)
+for path in frames if f != 1 else []:
     img = cv2.imread(path)
     h, w = img.shape[:2]
     size = (round(w * f), round(h * f))
@@ -49,3 +54,13 @@ for view in ("front", "side"):
     m = re.search(view + r"_camera_matrix:.*?data: \[([^\]]*)\]", text, re.S)
     text = text[: m.start(1)] + ", ".join(repr(float(x)) for x in k2.ravel()) + text[m.end(1) :]
 open(f"{dst}/station.yaml", "w").write(text)
+if h264:
+    for view in ("front", "side"):
+        subprocess.run(
+            ["ffmpeg", "-loglevel", "error", "-y", "-framerate", "30",
+             "-i", f"{dst}/{view}/%06d.png", "-c:v", "libx264", "-profile:v", "high",
+             "-bf", "3", "-crf", "18", "-pix_fmt", "yuv420p", f"{dst}/{view}.mp4"],
+            check=True,
+        )
+        # A frame folder wins over the MP4 (spec/formats.md).
+        shutil.rmtree(f"{dst}/{view}")

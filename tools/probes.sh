@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Generality probes of the station beyond the synthetic renderer's own look: posed
 # subjects, bodies outside the shape library, a white / black / grey studio backdrop,
-# other resolutions and JPEG frames.
+# other resolutions, JPEG frames, and MP4s as ffmpeg writes them (High profile, B-frames).
+# Needs ffmpeg for those.
 # Needs python3 with opencv-python-headless and numpy. Usage: bash tools/probes.sh [DIR]
 set -euo pipefail
 dir=${1:-/tmp/fitstation-probes}
@@ -44,7 +45,7 @@ for level in 255 0 128; do
   "$bin" replay "$dir/bd_$level" --out "$dir/out_bd_$level" > /dev/null 2>&1 || true
   summary "$base" "$dir/out_bd_$level" "backdrop$level"
 done
-for how in 0.5 1.5 jpeg:70; do
+for how in 0.5 1.5 jpeg:70 h264:1 h264:1.5; do
   name=$(echo "$how" | tr ':' '_')
   python3 tools/probe_rescale.py "$base" "$dir/rs_$name" "$how"
   "$bin" replay "$dir/rs_$name" --out "$dir/out_rs_$name" > /dev/null 2>&1 || true

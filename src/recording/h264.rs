@@ -10,18 +10,27 @@
 //! - An IDR frame every [`IDR_PERIOD_FRAMES`] frames.
 //!
 //! # Reading
-//! Decoding restarts at the last IDR frame at or before a requested frame when going
-//! back or jumping ahead. MP4 samples are converted to Annex-B (start codes) and, on sync samples, the avcC
-//! SPS/PPS are prepended before they reach the decoder (stack.md "Video files"). A file
-//! without a readable index is scanned: the `mdat` payload is walked NAL by NAL and
-//! every complete picture is decoded; the rest is reported.
+//! Any H.264 MP4 (other tools write High profile with B-frames): samples are stored in
+//! decoding order, and a stream with B-frames presents them in another order. The
+//! decoder gives its pictures in presentation order, some samples later, so frame `k` is
+//! the `k`-th picture out of the decoder (counted from a restart point), not the picture
+//! of sample `k`; the pictures still held at the end of the stream are flushed.
+//! Decoding restarts at the last sync sample at or before a requested frame when going
+//! back or jumping ahead, if that sample is a clean boundary (every sample decoded
+//! before it is also presented before it, from the composition offsets; so the first
+//! picture out after it is its own frame). MP4 samples are converted to Annex-B (start
+//! codes) and, on sync samples, the avcC SPS/PPS are prepended before they reach the
+//! decoder (stack.md "Video files"). A file without a readable index is scanned: the
+//! `mdat` payload is walked NAL by NAL and every complete picture is decoded; the rest
+//! is reported.
 
 use image::RgbImage;
-use openh264::decoder::Decoder;
+use openh264::decoder::{Decoder, DecoderConfig, Flush};
 use openh264::encoder::{
     BitRate, Encoder, EncoderConfig, FrameRate, FrameType, IntraFramePeriod, RateControlMode,
 };
 use openh264::formats::{RgbSliceU8, YUVBuffer, YUVSource};
+use openh264::OpenH264API;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
@@ -268,7 +277,7 @@ enum Index {
 }
 
 /// Reads one H.264 MP4 file frame by frame (sequential reading is cheap; going back
-/// restarts decoding from the first frame).
+/// restarts decoding at the last clean sync sample).
 pub struct Mp4VideoReader {
     path: PathBuf,
     index: Index,
@@ -276,13 +285,48 @@ pub struct Mp4VideoReader {
     len: usize,
     width: u32,
     height: u32,
-    /// Index of the next frame the decoder will produce.
-    next: usize,
-    /// Frames that start a closed group (IDR), ascending; decoding may restart there.
+    /// Decoding-order index of the next sample to feed the decoder.
+    next_sample: usize,
+    /// Presentation index (frame) of the next picture the decoder gives.
+    next_out: usize,
+    /// Pictures flushed from the decoder at the end of the stream, in order.
+    pending: std::collections::VecDeque<RgbImage>,
+    /// Samples decoding may restart at, ascending: sync samples with every earlier
+    /// sample presented before them (their sample index is their frame index).
     sync: Vec<usize>,
     last: Option<(usize, RgbImage)>,
     annexb: Vec<u8>,
     warnings: Vec<String>,
+}
+
+/// A decoder that keeps reordered pictures until they are due (no flush after each
+/// sample: that would take a picture out of order).
+fn new_decoder(path: &Path) -> Result<Decoder, VideoError> {
+    Decoder::with_api_config(
+        OpenH264API::from_source(),
+        DecoderConfig::new().flush_after_decode(Flush::NoFlush),
+    )
+    .map_err(|e| verr(path, format!("H.264 decoder: {e}")))
+}
+
+/// The sync samples at which decoding can restart with the frame of the same index: every
+/// sample decoded before it is presented before it and every sample decoded after it is
+/// presented after it (not so at an open group's I-frame, whose leading B-frames follow
+/// it in decoding order and precede it on screen). `cts` are the samples' composition
+/// times in decoding order.
+fn clean_restarts(sync: &[usize], cts: &[i64]) -> Vec<usize> {
+    let mut min_after = vec![i64::MAX; cts.len() + 1];
+    for i in (0..cts.len()).rev() {
+        min_after[i] = min_after[i + 1].min(cts[i]);
+    }
+    let mut max_before = vec![i64::MIN; cts.len() + 1];
+    for i in 0..cts.len() {
+        max_before[i + 1] = max_before[i].max(cts[i]);
+    }
+    sync.iter()
+        .copied()
+        .filter(|&i| i < cts.len() && max_before[i] < cts[i] && min_after[i + 1] > cts[i])
+        .collect()
 }
 
 impl Mp4VideoReader {
@@ -321,7 +365,7 @@ impl Mp4VideoReader {
         let sync: Vec<usize> = match &index {
             Index::Track { reader, track, .. } => {
                 let t = reader.tracks().get(track);
-                match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
+                let sync: Vec<usize> = match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
                     // No sync table: every sample is a sync sample (ISO 14496-12).
                     None => (0..t.map_or(0, |t| t.sample_count() as usize)).collect(),
                     Some(stss) => stss
@@ -330,6 +374,10 @@ impl Mp4VideoReader {
                         .filter(|&&e| e >= 1)
                         .map(|&e| e as usize - 1)
                         .collect(),
+                };
+                match t {
+                    Some(t) => clean_restarts(&sync, &composition_times(t)),
+                    None => sync,
                 }
             }
             Index::Scanned { pictures, .. } => pictures
@@ -353,7 +401,7 @@ impl Mp4VideoReader {
             }
             Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
         };
-        let decoder = Decoder::new().map_err(|e| verr(path, format!("H.264 decoder: {e}")))?;
+        let decoder = new_decoder(path)?;
         Ok(Mp4VideoReader {
             path: path.to_path_buf(),
             index,
@@ -361,7 +409,9 @@ impl Mp4VideoReader {
             len,
             width,
             height,
-            next: 0,
+            next_sample: 0,
+            next_out: 0,
+            pending: Default::default(),
             sync,
             last: None,
             annexb: Vec::new(),
@@ -426,8 +476,8 @@ impl Mp4VideoReader {
                 return Ok(img.clone());
             }
         }
-        // Restart at the last IDR frame at or before k when going back or when that
-        // IDR lies ahead of the decoder (skips decoding frames nobody asked for).
+        // Restart at the last clean sync sample at or before k when going back or when
+        // it lies ahead of the decoder (skips decoding frames nobody asked for).
         let restart = self
             .sync
             .iter()
@@ -435,28 +485,62 @@ impl Mp4VideoReader {
             .find(|&&i| i <= k)
             .copied()
             .unwrap_or(0);
-        if k < self.next || restart > self.next {
-            self.decoder =
-                Decoder::new().map_err(|e| verr(&self.path, format!("H.264 decoder: {e}")))?;
-            self.next = restart;
+        if k < self.next_out || restart > self.next_out {
+            self.decoder = new_decoder(&self.path)?;
+            self.next_sample = restart;
+            self.next_out = restart;
+            self.pending.clear();
         }
-        let mut out = None;
-        while self.next <= k {
-            let i = self.next;
-            self.next += 1;
-            let decoded = self.decode_sample(i);
-            if i == k {
-                out = Some(decoded?);
-            } else if let Err(e) = decoded {
-                self.warnings.push(e.to_string());
+        // The decoder gives pictures in presentation order: count them out until frame
+        // k's turn. A sample that fails to decode is taken to have been one picture.
+        loop {
+            let picture = if let Some(p) = self.pending.pop_front() {
+                Ok(p)
+            } else if self.next_sample < self.len {
+                let i = self.next_sample;
+                self.next_sample += 1;
+                match self.decode_sample(i) {
+                    Ok(Some(p)) => Ok(p),
+                    Ok(None) => continue,
+                    Err(e) => Err(e),
+                }
+            } else {
+                // End of the stream: the pictures the decoder still holds.
+                let rest = self.flush()?;
+                if rest.is_empty() {
+                    break;
+                }
+                self.pending.extend(rest);
+                continue;
+            };
+            let at = self.next_out;
+            self.next_out += 1;
+            match picture {
+                Ok(img) if at == k => {
+                    self.last = Some((k, img.clone()));
+                    return Ok(img);
+                }
+                Err(e) if at == k => return Err(e),
+                Err(e) => self.warnings.push(e.to_string()),
+                Ok(_) => {}
             }
         }
-        let img = out.ok_or_else(|| verr(&self.path, format!("frame {k} not decoded")))?;
-        self.last = Some((k, img.clone()));
-        Ok(img)
+        Err(verr(&self.path, format!("frame {k} not decoded")))
     }
 
-    fn decode_sample(&mut self, i: usize) -> Result<RgbImage, VideoError> {
+    /// The pictures the decoder still holds (end of the stream), in order.
+    fn flush(&mut self) -> Result<Vec<RgbImage>, VideoError> {
+        let path = self.path.clone();
+        let rest = self
+            .decoder
+            .flush_remaining()
+            .map_err(|e| verr(&path, format!("H.264 flush: {e}")))?;
+        Ok(rest.iter().map(to_rgb).collect())
+    }
+
+    /// Feeds sample `i` (decoding order) to the decoder; the picture it gives, if any
+    /// (a reordering stream gives its pictures later).
+    fn decode_sample(&mut self, i: usize) -> Result<Option<RgbImage>, VideoError> {
         let path = self.path.clone();
         self.annexb.clear();
         match &mut self.index {
@@ -513,15 +597,53 @@ impl Mp4VideoReader {
         let yuv = self
             .decoder
             .decode(&self.annexb)
-            .map_err(|e| verr(&path, format!("frame {i}: H.264 decode: {e}")))?
-            .ok_or_else(|| verr(&path, format!("frame {i}: the decoder returned no picture")))?;
-        let (w, h) = yuv.dimensions();
-        let mut img = RgbImage::new(w as u32, h as u32);
-        yuv.write_rgb8(img.as_mut());
-        self.width = w as u32;
-        self.height = h as u32;
-        Ok(img)
+            .map_err(|e| verr(&path, format!("sample {i}: H.264 decode: {e}")))?;
+        let Some(yuv) = yuv else {
+            return Ok(None);
+        };
+        let img = to_rgb(&yuv);
+        (self.width, self.height) = img.dimensions();
+        Ok(Some(img))
     }
+}
+
+/// A decoded picture as 8-bit RGB.
+fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
+    let (w, h) = yuv.dimensions();
+    let mut img = RgbImage::new(w as u32, h as u32);
+    yuv.write_rgb8(img.as_mut());
+    img
+}
+
+/// Composition times of a track's samples in decoding order: decoding times (`stts`)
+/// plus composition offsets (`ctts`, none: presented in decoding order).
+fn composition_times(t: &mp4::Mp4Track) -> Vec<i64> {
+    let stbl = &t.trak.mdia.minf.stbl;
+    let n = t.sample_count() as usize;
+    let mut cts = Vec::with_capacity(n);
+    let mut time = 0i64;
+    for e in &stbl.stts.entries {
+        for _ in 0..e.sample_count {
+            if cts.len() == n {
+                break;
+            }
+            cts.push(time);
+            time += i64::from(e.sample_delta);
+        }
+    }
+    cts.resize(n, time);
+    if let Some(ctts) = &stbl.ctts {
+        let mut i = 0usize;
+        for e in &ctts.entries {
+            for _ in 0..e.sample_count {
+                if let Some(c) = cts.get_mut(i) {
+                    *c += i64::from(e.sample_offset);
+                }
+                i += 1;
+            }
+        }
+    }
+    cts
 }
 
 /// Walks the top-level boxes to the `mdat` payload and splits it into pictures: NAL
@@ -615,4 +737,23 @@ fn scan_nals(
         pos += 4 + n as u64;
     }
     Ok(pictures)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn restarts_only_where_the_frame_index_is_the_sample_index() {
+        // Closed groups with B-frames (I P B B | I P B B), composition times in decoding
+        // order: both I-frames are clean.
+        let closed = [0, 3, 1, 2, 4, 7, 5, 6];
+        assert_eq!(clean_restarts(&[0, 4], &closed), vec![0, 4]);
+        // An open group: the second I-frame (decoded 4th, shown 7th) has leading
+        // B-frames shown before it.
+        let open = [0, 3, 1, 2, 6, 4, 5, 7];
+        assert_eq!(clean_restarts(&[0, 4], &open), vec![0]);
+        // No reordering: every sync sample is clean; out-of-range entries are dropped.
+        assert_eq!(clean_restarts(&[0, 2, 9], &[0, 1, 2, 3]), vec![0, 2]);
+    }
 }
