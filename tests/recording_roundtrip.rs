@@ -309,50 +309,42 @@ fn mp4_random_access_gives_the_same_frames() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// MP4s from other tools: ffmpeg's libx264 writes High profile with B-frames (samples in
-/// decoding order, pictures presented in another order) and closed groups of 12. Every
-/// frame comes back in presentation order, sequentially and by seeking.
-#[test]
-fn mp4_from_ffmpeg_with_b_frames_reads_in_presentation_order() {
-    let have_ffmpeg = std::process::Command::new("ffmpeg")
+/// Whether the `ffmpeg` command runs (required when CI is set).
+fn have_ffmpeg(what: &str) -> bool {
+    let ok = std::process::Command::new("ffmpeg")
         .arg("-version")
         .output()
         .is_ok_and(|o| o.status.success());
-    if !have_ffmpeg {
-        println!("SKIPPED: ffmpeg not installed; MP4s with B-frames not checked");
+    if !ok {
+        println!("SKIPPED: ffmpeg not installed; {what} not checked");
         assert!(
             std::env::var_os("CI").is_none(),
             "ffmpeg is required when CI is set"
         );
-        return;
     }
-    let n = 40;
+    ok
+}
+
+/// A recording of `n` frames encoded by ffmpeg's libx264 with `args`; returns its folder,
+/// the frames and the PNG folder they came from.
+fn ffmpeg_recording(
+    name: &str,
+    n: usize,
+    args: &[&str],
+) -> (PathBuf, PathBuf, Vec<(RgbImage, RgbImage)>) {
     let (calib, fr) = frames(n);
-    let png = tmp("bframes-png");
+    let png = tmp(&format!("{name}-png"));
     write(&png, &calib, &fr, FrameFormat::Png);
-    let dir = tmp("bframes-mp4");
+    let dir = tmp(&format!("{name}-mp4"));
     std::fs::create_dir_all(&dir).unwrap();
     std::fs::copy(png.join("station.yaml"), dir.join("station.yaml")).unwrap();
     for view in ["front", "side"] {
-        let mp4 = dir.join(format!("{view}.mp4"));
         let out = std::process::Command::new("ffmpeg")
             .args(["-loglevel", "error", "-y", "-framerate", "30", "-i"])
             .arg(png.join(view).join("%06d.png"))
-            .args([
-                "-c:v",
-                "libx264",
-                "-profile:v",
-                "high",
-                "-bf",
-                "3",
-                "-g",
-                "12",
-                "-crf",
-                "12",
-                "-pix_fmt",
-                "yuv420p",
-            ])
-            .arg(&mp4)
+            .args(["-c:v", "libx264", "-crf", "12"])
+            .args(args)
+            .arg(dir.join(format!("{view}.mp4")))
             .output()
             .unwrap();
         assert!(
@@ -360,37 +352,43 @@ fn mp4_from_ffmpeg_with_b_frames_reads_in_presentation_order() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let probe = std::process::Command::new("ffprobe")
-            .args([
-                "-v",
-                "error",
-                "-show_entries",
-                "stream=has_b_frames",
-                "-of",
-                "csv=p=0",
-            ])
-            .arg(&mp4)
-            .output()
-            .unwrap();
-        let b: u32 = String::from_utf8_lossy(&probe.stdout)
-            .trim()
-            .parse()
-            .unwrap_or(0);
-        assert!(b > 0, "{view}.mp4 has no B-frames to reorder");
     }
-    let mut r = Recording::open(&dir).unwrap();
-    assert_eq!(r.len(), n);
+    (dir, png, fr)
+}
+
+/// What ffprobe says of a stream's `key` (e.g. `has_b_frames`, `pix_fmt`).
+fn probe(file: &Path, key: &str) -> String {
+    let out = std::process::Command::new("ffprobe")
+        .args([
+            "-v",
+            "error",
+            "-show_entries",
+            &format!("stream={key}"),
+            "-of",
+            "csv=p=0",
+        ])
+        .arg(file)
+        .output()
+        .unwrap();
+    String::from_utf8_lossy(&out.stdout).trim().to_string()
+}
+
+/// Every frame of `dir` matches its own frame of `fr` (PSNR over 30 dB, and clearly
+/// better than its neighbours': the square moves 6 px a frame), read sequentially and
+/// by seeking.
+fn frames_in_order(dir: &Path, fr: &[(RgbImage, RgbImage)], seeks: &[usize]) {
+    let mut r = Recording::open(dir).unwrap();
+    assert_eq!(r.len(), fr.len());
+    let view = |pair: &(RgbImage, RgbImage), v: usize| {
+        if v == 0 {
+            pair.0.clone()
+        } else {
+            pair.1.clone()
+        }
+    };
     let mut sequential = Vec::new();
-    for k in 0..n {
+    for k in 0..fr.len() {
         let (f, s) = r.frame_pair(k).unwrap();
-        // Each frame is its own PNG (the square moves 6 px a frame), not a neighbour.
-        let view = |pair: &(RgbImage, RgbImage), v: usize| {
-            if v == 0 {
-                pair.0.clone()
-            } else {
-                pair.1.clone()
-            }
-        };
         for (v, got) in [(0, &f), (1, &s)] {
             let own = psnr(got, &view(&fr[k], v));
             assert!(own > 30.0, "frame {k}: PSNR {own:.1} dB");
@@ -406,14 +404,64 @@ fn mp4_from_ffmpeg_with_b_frames_reads_in_presentation_order() {
         }
         sequential.push(f);
     }
-    let mut r = Recording::open(&dir).unwrap();
-    for k in [33, 2, 31, 13, 39, 24, 0, 17] {
+    let mut r = Recording::open(dir).unwrap();
+    for &k in seeks {
         let (f, _) = r.frame_pair(k).unwrap();
         assert!(
             f == sequential[k],
             "frame {k} differs when reached by seeking"
         );
     }
+}
+
+/// MP4s from other tools: ffmpeg's libx264 writes High profile with B-frames (samples in
+/// decoding order, pictures presented in another order); here with closed groups of 12.
+/// Every frame comes back in presentation order, sequentially and by seeking.
+#[test]
+fn mp4_from_ffmpeg_with_b_frames_reads_in_presentation_order() {
+    if !have_ffmpeg("MP4s with B-frames") {
+        return;
+    }
+    let args = [
+        "-profile:v",
+        "high",
+        "-bf",
+        "3",
+        "-g",
+        "12",
+        "-pix_fmt",
+        "yuv420p",
+    ];
+    let (dir, png, fr) = ffmpeg_recording("bframes", 40, &args);
+    for view in ["front", "side"] {
+        let b: u32 = probe(&dir.join(format!("{view}.mp4")), "has_b_frames")
+            .parse()
+            .unwrap_or(0);
+        assert!(b > 0, "{view}.mp4 has no B-frames to reorder");
+    }
+    frames_in_order(&dir, &fr, &[33, 2, 31, 13, 39, 24, 0, 17]);
+    let _ = std::fs::remove_dir_all(&png);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// ffmpeg encodes RGB frames as 4:4:4 unless told otherwise (High 4:4:4 Predictive),
+/// which OpenH264 cannot decode: such files are decoded by ffmpeg, with a warning.
+#[test]
+fn mp4_in_4_4_4_is_decoded_through_ffmpeg() {
+    if !have_ffmpeg("4:4:4 MP4s") {
+        return;
+    }
+    let (dir, png, fr) = ffmpeg_recording("yuv444", 12, &[]);
+    assert_eq!(probe(&dir.join("front.mp4"), "pix_fmt"), "yuv444p");
+    let r = Recording::open(&dir).unwrap();
+    assert!(
+        r.warnings()
+            .iter()
+            .any(|w| w.contains("4:4:4") && w.contains("ffmpeg")),
+        "{:?}",
+        r.warnings()
+    );
+    frames_in_order(&dir, &fr, &[7, 2, 11, 0]);
     let _ = std::fs::remove_dir_all(&png);
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -297,6 +297,9 @@ pub struct Mp4VideoReader {
     last: Option<(usize, RgbImage)>,
     annexb: Vec<u8>,
     warnings: Vec<String>,
+    /// Streams OpenH264 cannot decode (4:2:2 / 4:4:4 chroma, more than 8 bits) go
+    /// through an installed `ffmpeg` instead.
+    external: Option<FfmpegPipe>,
 }
 
 /// A decoder that keeps reordered pictures until they are due (no flush after each
@@ -401,8 +404,33 @@ impl Mp4VideoReader {
             }
             Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
         };
+        let external = match &index {
+            Index::Track { sps, .. } => match SpsFormat::parse(sps) {
+                Some(f) if !f.openh264_decodes() => {
+                    let pipe = FfmpegPipe::new(path, width, height).map_err(|e| {
+                        verr(
+                            path,
+                            format!(
+                                "H.264 {f}: the built-in decoder (OpenH264) reads 8-bit 4:2:0 \
+                                 only, and ffmpeg, used for other streams when installed, \
+                                 could not be run ({e}); re-encode with `ffmpeg -i IN \
+                                 -pix_fmt yuv420p OUT.mp4`"
+                            ),
+                        )
+                    })?;
+                    warnings.push(format!(
+                        "{}: H.264 {f} is decoded by ffmpeg (OpenH264 reads 8-bit 4:2:0 only)",
+                        path.display()
+                    ));
+                    Some(pipe)
+                }
+                _ => None,
+            },
+            Index::Scanned { .. } => None,
+        };
         let decoder = new_decoder(path)?;
         Ok(Mp4VideoReader {
+            external,
             path: path.to_path_buf(),
             index,
             decoder,
@@ -470,6 +498,11 @@ impl Mp4VideoReader {
                 &self.path,
                 format!("frame {k} beyond the {} frames", self.len),
             ));
+        }
+        if let Some(pipe) = &mut self.external {
+            return pipe
+                .frame(k)
+                .map_err(|e| verr(&self.path, format!("frame {k}: ffmpeg: {e}")));
         }
         if let Some((i, img)) = &self.last {
             if *i == k {
@@ -604,6 +637,199 @@ impl Mp4VideoReader {
         let img = to_rgb(&yuv);
         (self.width, self.height) = img.dimensions();
         Ok(Some(img))
+    }
+}
+
+/// What a sequence parameter set says about the coded pictures.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct SpsFormat {
+    profile_idc: u8,
+    /// 0 monochrome, 1 4:2:0, 2 4:2:2, 3 4:4:4.
+    chroma_format_idc: u32,
+    bit_depth_luma: u32,
+    bit_depth_chroma: u32,
+}
+
+impl SpsFormat {
+    /// Parses the start of an SPS NAL unit (header byte included). None when it is too
+    /// short or not an SPS.
+    fn parse(sps: &[u8]) -> Option<SpsFormat> {
+        if sps.len() < 4 || sps[0] & 0x1f != NAL_SPS {
+            return None;
+        }
+        let profile_idc = sps[1];
+        let mut f = SpsFormat {
+            profile_idc,
+            chroma_format_idc: 1,
+            bit_depth_luma: 8,
+            bit_depth_chroma: 8,
+        };
+        // The profiles whose SPS codes the chroma format and bit depths (H.264 7.3.2.1.1).
+        if matches!(
+            profile_idc,
+            100 | 110 | 122 | 244 | 44 | 83 | 86 | 118 | 128 | 138 | 139 | 134 | 135
+        ) {
+            // The RBSP after level_idc, emulation prevention bytes (00 00 03) removed.
+            let mut rbsp = Vec::with_capacity(sps.len());
+            let mut zeros = 0;
+            for &b in &sps[4..] {
+                if zeros >= 2 && b == 3 {
+                    zeros = 0;
+                    continue;
+                }
+                zeros = if b == 0 { zeros + 1 } else { 0 };
+                rbsp.push(b);
+            }
+            let mut bits = BitReader {
+                data: &rbsp,
+                pos: 0,
+            };
+            bits.ue()?; // seq_parameter_set_id
+            f.chroma_format_idc = bits.ue()?;
+            if f.chroma_format_idc == 3 {
+                bits.bit()?; // separate_colour_plane_flag
+            }
+            f.bit_depth_luma = 8 + bits.ue()?;
+            f.bit_depth_chroma = 8 + bits.ue()?;
+        }
+        Some(f)
+    }
+
+    /// OpenH264 decodes 8-bit 4:2:0 only.
+    fn openh264_decodes(&self) -> bool {
+        self.chroma_format_idc == 1 && self.bit_depth_luma == 8 && self.bit_depth_chroma == 8
+    }
+}
+
+impl std::fmt::Display for SpsFormat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let chroma = match self.chroma_format_idc {
+            0 => "monochrome",
+            1 => "4:2:0",
+            2 => "4:2:2",
+            3 => "4:4:4",
+            _ => "unknown chroma",
+        };
+        write!(
+            f,
+            "profile {} ({chroma}, {}-bit)",
+            self.profile_idc, self.bit_depth_luma
+        )
+    }
+}
+
+/// Big-endian bit reader for Exp-Golomb codes.
+struct BitReader<'a> {
+    data: &'a [u8],
+    pos: usize,
+}
+
+impl BitReader<'_> {
+    fn bit(&mut self) -> Option<u32> {
+        let b = self.data.get(self.pos / 8)?;
+        let v = (b >> (7 - self.pos % 8)) & 1;
+        self.pos += 1;
+        Some(u32::from(v))
+    }
+    /// Unsigned Exp-Golomb code ue(v).
+    fn ue(&mut self) -> Option<u32> {
+        let mut zeros = 0;
+        while self.bit()? == 0 {
+            zeros += 1;
+            if zeros > 31 {
+                return None;
+            }
+        }
+        let mut v = 1u64;
+        for _ in 0..zeros {
+            v = (v << 1) | u64::from(self.bit()?);
+        }
+        u32::try_from(v - 1).ok()
+    }
+}
+
+/// Frames of a video decoded by an installed `ffmpeg` into raw RGB, read sequentially
+/// from its output (going back restarts it).
+struct FfmpegPipe {
+    path: PathBuf,
+    width: u32,
+    height: u32,
+    child: Option<std::process::Child>,
+    /// Index of the next frame the pipe gives.
+    next: usize,
+}
+
+impl FfmpegPipe {
+    fn new(path: &Path, width: u32, height: u32) -> Result<FfmpegPipe, String> {
+        if width == 0 || height == 0 {
+            return Err("the track header gives no frame size".into());
+        }
+        let mut p = FfmpegPipe {
+            path: path.to_path_buf(),
+            width,
+            height,
+            child: None,
+            next: 0,
+        };
+        p.restart()?;
+        Ok(p)
+    }
+
+    fn restart(&mut self) -> Result<(), String> {
+        self.stop();
+        let child = std::process::Command::new("ffmpeg")
+            .args(["-v", "error", "-nostdin", "-i"])
+            .arg(&self.path)
+            .args([
+                "-fps_mode",
+                "passthrough",
+                "-f",
+                "rawvideo",
+                "-pix_fmt",
+                "rgb24",
+                "-",
+            ])
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .map_err(|e| format!("cannot run ffmpeg: {e}"))?;
+        self.child = Some(child);
+        self.next = 0;
+        Ok(())
+    }
+
+    fn stop(&mut self) {
+        if let Some(mut c) = self.child.take() {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+
+    fn frame(&mut self, k: usize) -> Result<RgbImage, String> {
+        if k < self.next || self.child.is_none() {
+            self.restart()?;
+        }
+        let mut img = RgbImage::new(self.width, self.height);
+        loop {
+            let out = self
+                .child
+                .as_mut()
+                .and_then(|c| c.stdout.as_mut())
+                .ok_or("no ffmpeg output")?;
+            out.read_exact(&mut img)
+                .map_err(|e| format!("frame {}: {e} (stream ended?)", self.next))?;
+            self.next += 1;
+            if self.next == k + 1 {
+                return Ok(img);
+            }
+        }
+    }
+}
+
+impl Drop for FfmpegPipe {
+    fn drop(&mut self) {
+        self.stop();
     }
 }
 
@@ -742,6 +968,31 @@ fn scan_nals(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_sps_tells_which_streams_openh264_decodes() {
+        // Constrained Baseline: no chroma fields, 8-bit 4:2:0.
+        let base = SpsFormat::parse(&[0x67, 66, 0xc0, 31, 0xda]).unwrap();
+        assert!(base.openh264_decodes());
+        // High: sps_id ue(0) = 1, chroma ue(1) = 010, depths ue(0) ue(0) = 1 1.
+        let high = SpsFormat::parse(&[0x67, 100, 0, 31, 0b1010_1100]).unwrap();
+        assert_eq!((high.chroma_format_idc, high.bit_depth_luma), (1, 8));
+        assert!(high.openh264_decodes());
+        // High 4:4:4 (ffmpeg's default for RGB input): chroma ue(3) = 00100, separate
+        // planes 0, depths 1 1.
+        let f444 = SpsFormat::parse(&[0x67, 244, 0, 31, 0b1001_0001, 0b1000_0000]).unwrap();
+        assert_eq!(f444.chroma_format_idc, 3);
+        assert!(!f444.openh264_decodes());
+        assert_eq!(f444.to_string(), "profile 244 (4:4:4, 8-bit)");
+        // High 10: chroma 4:2:0, luma depth ue(2) = 011 -> 10 bits.
+        let f10 = SpsFormat::parse(&[0x67, 110, 0, 31, 0b1010_0110, 0b1000_0000]).unwrap();
+        assert_eq!((f10.chroma_format_idc, f10.bit_depth_luma), (1, 10));
+        assert!(!f10.openh264_decodes());
+        // Not an SPS, or cut short.
+        assert_eq!(SpsFormat::parse(&[0x68, 100, 0, 31, 0xff]), None);
+        assert_eq!(SpsFormat::parse(&[0x67, 100, 0]), None);
+        assert_eq!(SpsFormat::parse(&[0x67, 100, 0, 31, 0x00]), None);
+    }
 
     #[test]
     fn restarts_only_where_the_frame_index_is_the_sample_index() {
