@@ -269,6 +269,8 @@ enum Index {
         sps: Vec<u8>,
         pps: Vec<u8>,
     },
+    /// A video track in another codec than H.264: frames come from ffmpeg.
+    External,
     /// No usable index: pictures found by walking the media data.
     Scanned {
         file: BufReader<File>,
@@ -346,8 +348,31 @@ impl Mp4VideoReader {
             })?
             .len();
         let mut warnings = Vec::new();
+        let mut external = None;
+        let mut other_track = None;
         let index = match Self::open_index(path, &file, size) {
             Ok(i) => i,
+            Err(msg) if let Some((len, w, h, codec)) = other_video_track(&file, size) => {
+                // A readable MP4 whose video is not H.264 (MPEG-4 Part 2 from OpenCV's
+                // VideoWriter, say): not what spec/formats.md asks for, but readable.
+                let pipe = FfmpegPipe::new(path, u32::from(w), u32::from(h)).map_err(|e| {
+                    verr(
+                        path,
+                        format!(
+                            "{msg}: the video track is {codec}; recordings hold H.264 \
+                             (spec/formats.md) and ffmpeg, used for other codecs when \
+                             installed, could not be run ({e})"
+                        ),
+                    )
+                })?;
+                warnings.push(format!(
+                    "{}: the video track is {codec}, not H.264: decoded by ffmpeg",
+                    path.display()
+                ));
+                external = Some(pipe);
+                other_track = Some((len, u32::from(w), u32::from(h)));
+                Index::External
+            }
             Err(msg) => {
                 let pictures = scan_mdat(path, size)?;
                 warnings.push(format!(
@@ -389,6 +414,7 @@ impl Mp4VideoReader {
                 .filter(|(_, p)| p.idr)
                 .map(|(i, _)| i)
                 .collect(),
+            Index::External => Vec::new(),
         };
         let (len, width, height) = match &index {
             Index::Track { reader, track, .. } => {
@@ -403,8 +429,10 @@ impl Mp4VideoReader {
                 )
             }
             Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
+            Index::External => other_track.unwrap_or((0, 0, 0)),
         };
         let external = match &index {
+            Index::External => external,
             Index::Track { sps, .. } => match SpsFormat::parse(sps) {
                 Some(f) if !f.openh264_decodes() => {
                     let pipe = FfmpegPipe::new(path, width, height).map_err(|e| {
@@ -606,6 +634,9 @@ impl Mp4VideoReader {
                     p += n;
                 }
             }
+            Index::External => {
+                return Err(verr(&path, format!("frame {i}: no H.264 track")));
+            }
             Index::Scanned { file, pictures } => {
                 let pic = pictures
                     .get(i)
@@ -638,6 +669,26 @@ impl Mp4VideoReader {
         (self.width, self.height) = img.dimensions();
         Ok(Some(img))
     }
+}
+
+/// The first video track of a readable MP4 that holds no H.264 track: (frames, width,
+/// height, codec name).
+fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u16, String)> {
+    // The clone shares the file position the failed H.264 look left behind.
+    let mut f = file.try_clone().ok()?;
+    f.seek(SeekFrom::Start(0)).ok()?;
+    let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size).ok()?;
+    let mut tracks: Vec<_> = reader.tracks().iter().collect();
+    tracks.sort_by_key(|(id, _)| **id);
+    let (_, t) = tracks
+        .into_iter()
+        .find(|(_, t)| matches!(t.track_type(), Ok(mp4::TrackType::Video)))?;
+    let codec = match t.box_type() {
+        Ok(b) => b.to_string(),
+        Err(_) => "a codec the MP4 reader does not know (MPEG-4 Part 2?)".to_string(),
+    };
+    let (w, h) = (t.width(), t.height());
+    (t.sample_count() > 0 && w > 0 && h > 0).then(|| (t.sample_count() as usize, w, h, codec))
 }
 
 /// What a sequence parameter set says about the coded pictures.
