@@ -246,16 +246,12 @@ fn missing_calibration_is_a_clear_error() {
 
 #[test]
 fn mp4_plays_in_opencv_ffmpeg() {
-    let have_cv2 = std::process::Command::new("python3")
-        .args(["-c", "import cv2"])
-        .output()
-        .is_ok_and(|o| o.status.success());
-    if !have_cv2 {
-        println!("SKIPPED: python3 with cv2 is not available; MP4 playback in OpenCV not checked");
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "cv2 is required when CI is set"
-        );
+    if !have(
+        "python3",
+        &["-c", "import cv2"],
+        "python3 with cv2",
+        "MP4 playback in OpenCV",
+    ) {
         return;
     }
     let n = 8;
@@ -309,20 +305,25 @@ fn mp4_random_access_gives_the_same_frames() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// Whether the `ffmpeg` command runs (required when CI is set).
-fn have_ffmpeg(what: &str) -> bool {
-    let ok = std::process::Command::new("ffmpeg")
-        .arg("-version")
+/// Whether `program args` runs; when it does not, says the check was skipped (and fails
+/// when CI is set: a skip in CI is a failure).
+fn have(program: &str, args: &[&str], name: &str, what: &str) -> bool {
+    let ok = std::process::Command::new(program)
+        .args(args)
         .output()
         .is_ok_and(|o| o.status.success());
     if !ok {
-        println!("SKIPPED: ffmpeg not installed; {what} not checked");
+        println!("SKIPPED: {name} is not available; {what} not checked");
         assert!(
             std::env::var_os("CI").is_none(),
-            "ffmpeg is required when CI is set"
+            "{name} is required when CI is set"
         );
     }
     ok
+}
+
+fn have_ffmpeg(what: &str) -> bool {
+    have("ffmpeg", &["-version"], "ffmpeg", what)
 }
 
 /// A recording of `n` frames encoded by ffmpeg with the output options `args`; returns
@@ -447,46 +448,44 @@ fn mp4_from_ffmpeg_with_b_frames_reads_in_presentation_order() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// ffmpeg encodes RGB frames as 4:4:4 unless told otherwise (High 4:4:4 Predictive),
-/// which OpenH264 cannot decode: such files are decoded by ffmpeg, with a warning.
+/// MP4s OpenH264 cannot read are decoded through ffmpeg, with a warning naming what they
+/// are: 4:4:4 (ffmpeg encodes RGB frames so unless told otherwise: High 4:4:4
+/// Predictive) and MPEG-4 Part 2 (OpenCV's VideoWriter with fourcc `mp4v`; not the H.264
+/// the format asks for).
 #[test]
-fn mp4_in_4_4_4_is_decoded_through_ffmpeg() {
-    if !have_ffmpeg("4:4:4 MP4s") {
+fn mp4s_openh264_cannot_read_are_decoded_through_ffmpeg() {
+    if !have_ffmpeg("4:4:4 and MPEG-4 Part 2 MP4s") {
         return;
     }
-    let (dir, png, fr) = ffmpeg_recording("yuv444", 12, &["-c:v", "libx264", "-crf", "12"]);
-    assert_eq!(probe(&dir.join("front.mp4"), "pix_fmt"), "yuv444p");
-    let r = Recording::open(&dir).unwrap();
-    assert!(
-        r.warnings()
-            .iter()
-            .any(|w| w.contains("4:4:4") && w.contains("ffmpeg")),
-        "{:?}",
-        r.warnings()
-    );
-    frames_in_order(&dir, &fr, &[7, 2, 11, 0]);
-    let _ = std::fs::remove_dir_all(&png);
-    let _ = std::fs::remove_dir_all(&dir);
-}
-
-/// OpenCV's VideoWriter (fourcc `mp4v`) writes MPEG-4 Part 2, not the H.264 the format
-/// asks for: such files are decoded by ffmpeg, with a warning naming the codec.
-#[test]
-fn mp4_in_another_codec_is_decoded_through_ffmpeg() {
-    if !have_ffmpeg("MPEG-4 Part 2 MP4s") {
-        return;
+    let cases: [(&str, &[&str], &str, &str, &str); 2] = [
+        (
+            "yuv444",
+            &["-c:v", "libx264", "-crf", "12"],
+            "pix_fmt",
+            "yuv444p",
+            "4:4:4",
+        ),
+        (
+            "mpeg4",
+            &["-c:v", "mpeg4", "-q:v", "1"],
+            "codec_name",
+            "mpeg4",
+            "not H.264",
+        ),
+    ];
+    for (name, args, key, want, warning) in cases {
+        let (dir, png, fr) = ffmpeg_recording(name, 10, args);
+        assert_eq!(probe(&dir.join("front.mp4"), key), want);
+        let r = Recording::open(&dir).unwrap();
+        assert!(
+            r.warnings()
+                .iter()
+                .any(|w| w.contains(warning) && w.contains("ffmpeg")),
+            "{name}: {:?}",
+            r.warnings()
+        );
+        frames_in_order(&dir, &fr, &[7, 2, 9, 0]);
+        let _ = std::fs::remove_dir_all(&png);
+        let _ = std::fs::remove_dir_all(&dir);
     }
-    let (dir, png, fr) = ffmpeg_recording("mpeg4", 10, &["-c:v", "mpeg4", "-q:v", "1"]);
-    assert_eq!(probe(&dir.join("front.mp4"), "codec_name"), "mpeg4");
-    let r = Recording::open(&dir).unwrap();
-    assert!(
-        r.warnings()
-            .iter()
-            .any(|w| w.contains("not H.264") && w.contains("ffmpeg")),
-        "{:?}",
-        r.warnings()
-    );
-    frames_in_order(&dir, &fr, &[7, 2, 9, 0]);
-    let _ = std::fs::remove_dir_all(&png);
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -109,16 +109,7 @@ fn limb_axis(positions: &[DVec3], labels: &[Part], part: Part) -> Option<(DVec2,
     if pts.len() < 10 {
         return None;
     }
-    let c = pts.iter().copied().sum::<DVec2>() / pts.len() as f64;
-    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-    for p in &pts {
-        let d = *p - c;
-        sxx += d.x * d.x;
-        sxy += d.x * d.y;
-        syy += d.y * d.y;
-    }
-    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-    let mut axis = DVec2::new(angle.cos(), angle.sin());
+    let (c, mut axis) = crate::landmarks::zones::principal_axis(&pts)?;
     if axis.y > 0.0 {
         axis = -axis;
     }

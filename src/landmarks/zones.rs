@@ -81,6 +81,24 @@ pub fn gap_apex(poly: &[DVec2], ea: usize, eb: usize, v0: f64) -> Option<usize> 
     Some((top + n - back + (back + fwd) / 2) % n)
 }
 
+/// Centroid and principal axis (unit, sign arbitrary) of a set of points: the direction
+/// of the largest spread, which a total least squares line follows. None when empty.
+pub fn principal_axis(pts: &[DVec2]) -> Option<(DVec2, DVec2)> {
+    if pts.is_empty() {
+        return None;
+    }
+    let c = pts.iter().copied().sum::<DVec2>() / pts.len() as f64;
+    let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
+    for p in pts {
+        let d = *p - c;
+        sxx += d.x * d.x;
+        sxy += d.x * d.y;
+        syy += d.y * d.y;
+    }
+    let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
+    Some((c, DVec2::new(angle.cos(), angle.sin())))
+}
+
 /// Flank points used by [`wedge_apex`]: this far below the apex, in pixels (nearer, the
 /// mask's own rounding of the apex bends the flanks; farther, the gap is no longer a
 /// wedge).
@@ -136,17 +154,7 @@ pub fn wedge_apex(poly: &[DVec2], apex: usize, px: f64) -> Option<DVec2> {
         if pts.len() < WEDGE_MIN_POINTS {
             return None;
         }
-        let c = pts.iter().copied().sum::<DVec2>() / pts.len() as f64;
-        let (mut sxx, mut sxy, mut syy) = (0.0, 0.0, 0.0);
-        for p in &pts {
-            let d = *p - c;
-            sxx += d.x * d.x;
-            sxy += d.x * d.y;
-            syy += d.y * d.y;
-        }
-        // Principal axis of the 2x2 scatter.
-        let angle = 0.5 * (2.0 * sxy).atan2(sxx - syy);
-        let mut dir = DVec2::new(angle.cos(), angle.sin());
+        let (c, mut dir) = principal_axis(&pts)?;
         if dir.dot(c - top) < 0.0 {
             dir = -dir;
         }
