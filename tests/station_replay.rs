@@ -354,3 +354,46 @@ fn a_hand_in_front_of_the_belly_does_not_move_the_body_forward() {
         d.mean_mm
     );
 }
+
+/// A shopper still settling into the A-pose when the body is first chosen: the first three
+/// subject frames have the arms 10 deg and the legs 3 deg closer (hands over the trunk in
+/// the side view), the rest hold the A-pose. The station chooses the body again once the
+/// new pose is held (`station::pose_change`); without that, this subject's hip came out
+/// 67 mm large and its waist 47 mm.
+#[test]
+fn a_pose_settled_after_the_first_fit_has_the_body_chosen_again() {
+    let dir = tmp("settle");
+    let render = |arms_deg: f64, legs_deg: f64, name: &str| {
+        let mut cfg = fitstation::synth::set_member(1000, 9, 12);
+        cfg.empty_frames = 10;
+        cfg.subject_frames = 10;
+        cfg.format = FrameFormat::Png;
+        cfg.subject.pose = fitstation::synth::subject::LimbPose { arms_deg, legs_deg };
+        let rec = dir.join(name);
+        render_recording(&cfg, &rec).expect("render");
+        rec
+    };
+    let rec = render(0.0, 0.0, "held");
+    let settling = render(-10.0, -3.0, "settling");
+    for view in ["front", "side"] {
+        for k in 10..13 {
+            let f = format!("{k:06}.png");
+            std::fs::copy(settling.join(view).join(&f), rec.join(view).join(&f)).unwrap();
+        }
+    }
+    let out = dir.join("out");
+    let o = replay(&rec, &out);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let report: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();
+    let truth = load_truth(&truth_dir(&rec)).unwrap();
+    for key in ["hip_girth", "waist_girth", "chest_girth"] {
+        let got = report["measurements_mm"][key].as_f64().unwrap();
+        let want = truth.measurements_mm[key];
+        eprintln!("{key}: {got:.1} mm, truth {want:.1} mm");
+        assert!((got - want).abs() < 20.0, "{key}: {got:.1} vs {want:.1} mm");
+    }
+    let messages = report["messages"].to_string();
+    assert!(messages.contains("pose changed"), "{messages}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -10,6 +10,7 @@
 
 pub mod cli;
 pub mod output;
+pub mod pose_change;
 
 use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
@@ -88,6 +89,8 @@ pub struct StationProcessor {
     /// the girths ([`SmoothedPoints`]).
     pub last_landmarks: Vec<(String, DVec3)>,
     landmark_windows: SmoothedPoints,
+    /// The pose the library body was chosen on, against the held pose.
+    pose: pose_change::PoseTracker,
     /// Reused silhouette buffers (masks, contours) of the per-frame path.
     silhouette_result: SilhouetteResult,
 }
@@ -116,6 +119,7 @@ impl StationProcessor {
             last_fit: None,
             last_landmarks: Vec::new(),
             landmark_windows: SmoothedPoints::default(),
+            pose: Default::default(),
             silhouette_result: SilhouetteResult::empty(),
         })
     }
@@ -241,15 +245,26 @@ impl StationProcessor {
             height: masks.side.height,
             data: &masks.side.data,
         };
+        // A pose held now that differs from the one the body was chosen on: choose the
+        // body again (see `pose_change`), and let the shown values settle anew.
+        let mut notes = Vec::new();
+        if self.pose.observe(&result.landmarks.points) && self.fitter.has_subject() {
+            self.fitter.reset();
+            for s in &mut self.smoothed {
+                s.clear();
+            }
+            self.landmark_windows.clear();
+            notes.push("The pose changed: the body is chosen again on the held pose.".to_string());
+        }
+        let first = !self.fitter.has_subject();
         let fit = self
             .fitter
             .fit(&self.calib, front, side, &obs)
             .map(|(p, st)| (p.to_vec(), st));
-        timer.lap(if self.last_fit.is_some() {
-            "refit"
-        } else {
-            "first_fit"
-        });
+        timer.lap(if first { "first_fit" } else { "refit" });
+        if first && fit.is_ok() {
+            self.pose.chosen_now();
+        }
         let (positions, stats) = match fit {
             Ok(x) => x,
             Err(e) => {
@@ -295,6 +310,7 @@ impl StationProcessor {
             Phase::Fitting
         };
         let mut s = self.snapshot(pair.index, phase, Some(result));
+        s.messages.extend(notes);
         s.messages.extend(
             verdicts
                 .iter()
@@ -349,6 +365,7 @@ impl FrameProcessor for StationProcessor {
         self.last_fit = None;
         self.last_landmarks.clear();
         self.landmark_windows.clear();
+        self.pose.clear();
     }
 }
 
