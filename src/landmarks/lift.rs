@@ -236,6 +236,28 @@ fn wedge_point(front: &Camera, plane: &[DVec2], apex: usize) -> Option<DVec2> {
     plane_point_to_normalized(front, p)
 }
 
+/// The feet's band above the floor, in units of stature (about 5 cm on an adult).
+const FOOT_BAND_REL: f64 = 0.03;
+/// Shortest heel-to-toe extent taken as feet (metres): less is a cut-off or lost foot.
+const MIN_FOOT_LENGTH_M: f64 = 0.12;
+
+/// The middle of the feet's heel-to-toe extent (z) in the side contour's plane (Z, Y),
+/// from the contour points within [`FOOT_BAND_REL`] of the floor. None without a stature
+/// or when the extent is shorter than a foot.
+fn feet_centre_z(side_plane: &[DVec2], stature: f64) -> Option<f64> {
+    if stature <= 0.0 {
+        return None;
+    }
+    let band = FOOT_BAND_REL * stature;
+    let (lo, hi) = side_plane
+        .iter()
+        .filter(|p| p.y < band)
+        .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+            (lo.min(p.x), hi.max(p.x))
+        });
+    (hi - lo >= MIN_FOOT_LENGTH_M).then_some(0.5 * (lo + hi))
+}
+
 /// Normalised coordinates of the front ray through a point of the front plane z = 0.
 fn plane_point_to_normalized(front: &Camera, p: DVec2) -> Option<DVec2> {
     let c = front.camera_from_station.apply(DVec3::new(p.x, p.y, 0.0));
@@ -374,13 +396,15 @@ pub fn lift_all(
         lm.verdicts
             .push(Verdict::ArmsTouchingTorso { left: l, right: r });
     }
-    // Position on the mark: x from the crotch (else the figure's centre), z from the
-    // side axis at hip height.
+    // Position on the mark: x from the crotch (else the figure's centre); z from the
+    // feet, which are what stands on the mark (the body's axis at the hips lies a few
+    // centimetres behind the feet's centre), else from the side axis at hip height.
     let (x, y) = match crotch {
         Some(c) => (c.x, c.y + 0.2 * h),
         None => (ff.center.x, ff.center.y),
     };
-    if let Some(z) = axis.at_plane(y, x) {
+    let z = feet_centre_z(&out.side.plane, stature).or_else(|| axis.at_plane(y, x));
+    if let Some(z) = z {
         if (x * x + z * z).sqrt() > opts.verdicts.off_mark_m {
             lm.verdicts.push(Verdict::OffMark { dx_m: x, dz_m: z });
         }

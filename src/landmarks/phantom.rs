@@ -221,6 +221,21 @@ impl Phantom {
         (arm, leg)
     }
 
+    /// The middle of both feet's heel-to-toe extent (z): where the subject stands, which
+    /// the station compares with the mark.
+    pub fn feet_centre_z(&self) -> Option<f64> {
+        let (mut lo, mut hi) = (f64::MAX, f64::MIN);
+        for side in [0, PRIMS_PER_SIDE] {
+            // The sixth limb capsule of each side is the foot (layout of `new`).
+            if let Some(Shape::Capsule { a, b, r }) = self.prims.get(2 + side + 5).map(|p| p.shape)
+            {
+                lo = lo.min(a.z.min(b.z) - r);
+                hi = hi.max(a.z.max(b.z) + r);
+            }
+        }
+        (hi >= lo).then_some(0.5 * (lo + hi))
+    }
+
     /// Height of the head top.
     pub fn stature(&self) -> f64 {
         (1.625 + 0.105) * self.params.scale
