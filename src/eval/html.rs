@@ -308,7 +308,8 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         table.rows.len()
     );
     s.push_str("<h2>Measurements (fitted - true, mm)</h2><table><tr><th>measurement</th><th>subjects</th><th>MAE</th><th>bias</th><th>worst</th><th>worst subject</th></tr>");
-    for m in table.summary() {
+    let summary = table.summary();
+    for m in &summary {
         let _ = write!(
             s,
             "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.1}</td><td>{:+.1}</td><td>{:+.1}</td><td style=\"text-align:left\">{}</td></tr>",
@@ -321,7 +322,6 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         );
     }
     s.push_str("</table><div class=\"grid\">");
-    let summary = table.summary();
     for m in &summary {
         let _ = write!(
             s,

@@ -269,8 +269,9 @@ enum Index {
         sps: Vec<u8>,
         pps: Vec<u8>,
     },
-    /// A video track in another codec than H.264: frames come from ffmpeg.
-    External,
+    /// A video track in another codec than H.264 (frames, width, height): frames come
+    /// from ffmpeg.
+    External { len: usize, width: u32, height: u32 },
     /// No usable index: pictures found by walking the media data.
     Scanned {
         file: BufReader<File>,
@@ -349,7 +350,6 @@ impl Mp4VideoReader {
             .len();
         let mut warnings = Vec::new();
         let mut external = None;
-        let mut other_track = None;
         let index = match Self::open_index(path, &file, size) {
             Ok(i) => i,
             Err(msg) if let Some((len, w, h, codec)) = other_video_track(&file, size) => {
@@ -370,8 +370,11 @@ impl Mp4VideoReader {
                     path.display()
                 ));
                 external = Some(pipe);
-                other_track = Some((len, u32::from(w), u32::from(h)));
-                Index::External
+                Index::External {
+                    len,
+                    width: u32::from(w),
+                    height: u32::from(h),
+                }
             }
             Err(msg) => {
                 let pictures = scan_mdat(path, size)?;
@@ -414,7 +417,7 @@ impl Mp4VideoReader {
                 .filter(|(_, p)| p.idr)
                 .map(|(i, _)| i)
                 .collect(),
-            Index::External => Vec::new(),
+            Index::External { .. } => Vec::new(),
         };
         let (len, width, height) = match &index {
             Index::Track { reader, track, .. } => {
@@ -429,10 +432,10 @@ impl Mp4VideoReader {
                 )
             }
             Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
-            Index::External => other_track.unwrap_or((0, 0, 0)),
+            Index::External { len, width, height } => (*len, *width, *height),
         };
         let external = match &index {
-            Index::External => external,
+            Index::External { .. } => external,
             Index::Track { sps, .. } => match SpsFormat::parse(sps) {
                 Some(f) if !f.openh264_decodes() => {
                     let pipe = FfmpegPipe::new(path, width, height).map_err(|e| {
@@ -634,7 +637,7 @@ impl Mp4VideoReader {
                     p += n;
                 }
             }
-            Index::External => {
+            Index::External { .. } => {
                 return Err(verr(&path, format!("frame {i}: no H.264 track")));
             }
             Index::Scanned { file, pictures } => {

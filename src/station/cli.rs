@@ -228,9 +228,9 @@ pub fn run_offline(
         .collect();
     let settled_steps = settled_steps(&series);
     let landmarks: serde_json::Map<String, serde_json::Value> = proc_
-        .last_landmarks
-        .iter()
-        .map(|(k, p)| (k.clone(), point_json(*p)))
+        .landmarks()
+        .into_iter()
+        .map(|(k, p)| (k, point_json(p)))
         .collect();
     // The fitted body's own landmarks, by the template's definitions (horizontal
     // sections of the avatar): once per run, not per frame.

@@ -85,9 +85,7 @@ pub struct StationProcessor {
     last_avatar: Option<Arc<TriMesh>>,
     pub last_measurements: Option<Measurements>,
     pub last_fit: Option<FitStats>,
-    /// The silhouettes' landmarks of the subject, smoothed over the fitted frames like
-    /// the girths ([`SmoothedPoints`]).
-    pub last_landmarks: Vec<(String, DVec3)>,
+    /// The silhouettes' landmarks of the fitted frames (see [`Self::landmarks`]).
     landmark_windows: SmoothedPoints,
     /// The pose the library body was chosen on, against the held pose.
     pose: pose_change::PoseTracker,
@@ -117,11 +115,16 @@ impl StationProcessor {
             last_avatar: None,
             last_measurements: None,
             last_fit: None,
-            last_landmarks: Vec::new(),
             landmark_windows: SmoothedPoints::default(),
             pose: Default::default(),
             silhouette_result: SilhouetteResult::empty(),
         })
+    }
+
+    /// The silhouettes' landmarks of the subject, smoothed over the fitted frames like
+    /// the girths ([`SmoothedPoints`]): computed when asked (the report), not per frame.
+    pub fn landmarks(&self) -> Vec<(String, DVec3)> {
+        self.landmark_windows.values()
     }
 
     /// The smoothed measurements (key, value mm, stability mm).
@@ -303,7 +306,6 @@ impl StationProcessor {
                 .iter()
                 .map(|p| (p.name.as_str(), p.station)),
         );
-        self.last_landmarks = self.landmark_windows.values();
         let phase = if self.is_settled() {
             Phase::Settled
         } else {
@@ -363,7 +365,6 @@ impl FrameProcessor for StationProcessor {
         self.last_avatar = None;
         self.last_measurements = None;
         self.last_fit = None;
-        self.last_landmarks.clear();
         self.landmark_windows.clear();
         self.pose.clear();
     }
