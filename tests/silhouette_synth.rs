@@ -26,13 +26,13 @@ use fitstation::synth::scene::Scene;
 use fitstation::synth::{self, load_truth, render_recording, truth_dir, SynthConfig};
 use std::path::{Path, PathBuf};
 
-/// Mask IoU floor of every frame. The target is 0.98; measured figures are
-/// printed (grey leggings in front of a grey floor inside the shadow zone are still taken
-/// for the person's shadow, see the segment module docs), the floor guards against
-/// regressions such as the whole legs or the person being lost.
-const MIN_IOU: f64 = 0.90;
+/// Mask IoU floor of every frame. The target is 0.98 for the mean; on these
+/// hard-look seeds the mean is 0.978 and the worst frame 0.942 (0.967 and 0.904 before
+/// the shadow's chromaticity tolerance became an angle: dark shoes and legs of the floor's
+/// hue were taken for their shadow). The floors guard against that coming back.
+const MIN_IOU: f64 = 0.93;
 /// Mean IoU over all frames and views.
-const MIN_MEAN_IOU: f64 = 0.95;
+const MIN_MEAN_IOU: f64 = 0.97;
 /// Stature (the head top) within 5 mm: the 10 mm for landmark heights, halved
 /// since the head top is moved down by the template's dome for each view's grazing ray
 /// (`landmarks::graze`; 3.0 mm worst on these seeds, 7.4-12.7 mm on the evaluation sets
@@ -342,12 +342,14 @@ fn synthetic_recordings_segment_and_give_landmark_heights() {
     );
     // Mean signed and mean absolute height error over the fitted frames.
     let (mut sum, mut abs, mut n) = ([0.0f64; 6], [0.0f64; 6], [0usize; 6]);
+    let mut within_10mm = 0usize;
     for s in &fitted {
         for k in 0..6 {
             if let Some(e) = s.height_err[k] {
                 sum[k] += e;
                 abs[k] += e.abs();
                 n[k] += 1;
+                within_10mm += (e.abs() <= 0.010) as usize;
             }
         }
     }
@@ -363,8 +365,9 @@ fn synthetic_recordings_segment_and_give_landmark_heights() {
         })
         .collect();
     println!(
-        "frames the station fits: mean height error mm (mean |error|): {}",
-        means.join(", ")
+        "frames the station fits: mean height error mm (mean |error|): {}; within 10 mm: {within_10mm} of {}",
+        means.join(", "),
+        n.iter().sum::<usize>()
     );
     assert!(!scores.is_empty());
     assert!(missing.is_empty(), "landmarks not found: {missing:?}");

@@ -5,7 +5,11 @@
 //! brightness within `[shadow_min_brightness, highlight_max_brightness]` with little
 //! chromaticity change (Horprasert, Harwood and Davis 1999: brightness distortion
 //! `alpha = I.E/|E|^2`, chromaticity distortion `|I - alpha E|`). That tolerates sensor
-//! noise, small exposure changes and the shadow at the feet.
+//! noise, small exposure changes and the shadow at the feet. The chromaticity tolerance
+//! is an angle: the noise radius seen from the unshadowed colour, so it shrinks with the
+//! brightness ratio (`|I - alpha E| <= chroma_k tau alpha / g`). A shadow scales the
+//! backdrop's colour and keeps its direction; a dark shoe of the floor's hue turns it
+//! by more than the floor's own variation does at that brightness.
 //!
 //! A cast shadow is only explained where one can fall: the *shadow zone*, the pixels whose
 //! viewing ray meets the floor within [`FLOOR_SHADOW_RADIUS_M`] of the mark
@@ -212,7 +216,8 @@ pub struct SegmentOptions {
     pub noise_k: f32,
     pub min_distance: f32,
     /// Chromaticity distortion above which a pixel is foreground, in units of the noise
-    /// radius.
+    /// radius scaled by the pixel's brightness ratio to the exposed model (at most 1):
+    /// the tolerance is the angle the noise radius subtends at the unshadowed colour.
     pub chroma_k: f32,
     /// In the shadow zone, darker than this fraction of the model brightness is
     /// foreground; between this and 1 (with low chromaticity distortion) is shadow, kept
@@ -835,6 +840,7 @@ impl BackgroundModel {
         // |I - gE|^2 = |d - (g-1)E|^2
         let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
         let chroma_ee = dd * ee - de * de; // |I - alpha E|^2 |E|^2
+        let lit_ee = ((ee + de) / g).clamp(0.0, ee); // (alpha / g) |E|^2, at most |E|^2
         let ck = o.chroma_k * o.chroma_k;
         let darkest = if m.in_zone() {
             o.shadow_min_brightness
@@ -842,7 +848,7 @@ impl BackgroundModel {
             o.lit_min_brightness
         };
         dg2 > tau2
-            && (chroma_ee > ck * tau2 * ee
+            && (chroma_ee * ee > ck * tau2 * lit_ee * lit_ee
                 || de < (g * darkest - 1.0) * ee
                 || de > (g * o.highlight_max_brightness - 1.0) * ee)
     }
@@ -972,6 +978,7 @@ impl BackgroundModel {
             g * o.highlight_max_brightness - 1.0,
         );
         let klo_step = klo_zone - klo_lit;
+        let inv_g = 1.0 / g;
         for cy in 0..ch {
             let y = cy * COARSE as usize;
             let row = &raw[3 * y * w..3 * (y + 1) * w];
@@ -1013,10 +1020,16 @@ impl BackgroundModel {
                 let tau2 = tau2 as f32;
                 let klo = klo_lit + zone as f32 * klo_step;
                 let chroma_ee = dd * ee - de * de;
+                // The chromaticity tolerance scales with the brightness ratio (see
+                // `chroma_k`): (alpha / g) |E|^2, at most |E|^2.
+                let lit_ee = ((ee + de) * inv_g).clamp(0.0, ee);
                 // |I - gE|^2 = |d - (g-1)E|^2
                 let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
                 let cand = dg2 > tau2;
-                let fg = cand & ((chroma_ee > ck2 * tau2 * ee) | (de < klo * ee) | (de > khi * ee));
+                let fg = cand
+                    & ((chroma_ee * ee > ck2 * tau2 * lit_ee * lit_ee)
+                        | (de < klo * ee)
+                        | (de > khi * ee));
                 // 255: foreground; 1: changed, but explained as shadow or exposure (WEAK).
                 *o = (fg as u8).wrapping_neg() | (cand as u8) << 1;
             }
@@ -1539,6 +1552,55 @@ mod tests {
             m.set_shadow_zone(&Mask::new(3, 3)),
             Err(SegmentError::ZoneSize { .. })
         ));
+    }
+
+    #[test]
+    fn a_dark_shoe_of_the_floors_hue_is_not_taken_for_its_shadow() {
+        // A brown floor; a shadow at 60 % of its brightness; a shoe at the same brightness
+        // whose colour is turned by 11 levels across the floor's (a greyer brown): within
+        // the noise radius (14) at full brightness, beyond it at 60 % (8.4).
+        let (w, h) = (120, 100);
+        let floor = [150.0f32, 115.0, 80.0];
+        let across = [-1.0f32, 0.5, 1.2]; // nearly orthogonal to the floor's colour
+        let n = across.iter().map(|v| v * v).sum::<f32>().sqrt();
+        let shoe = [0, 1, 2].map(|c| 0.6 * floor[c] + 11.0 * across[c] / n);
+        let paint = |seed: u32, figures: bool| {
+            let mut img = RgbImage::new(w, h);
+            let mut s = seed.wrapping_mul(2654435761).wrapping_add(1);
+            for (x, y, p) in img.enumerate_pixels_mut() {
+                s ^= s << 13;
+                s ^= s >> 17;
+                s ^= s << 5;
+                let n = (s % 5) as f32 - 2.0;
+                let c = if figures && (10..50).contains(&x) && (40..70).contains(&y) {
+                    shoe
+                } else if figures && (70..110).contains(&x) && (40..70).contains(&y) {
+                    floor.map(|v| 0.6 * v)
+                } else {
+                    floor
+                };
+                p.0 = c.map(|v| (v + n).round().clamp(0.0, 255.0) as u8);
+            }
+            img
+        };
+        let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+        for k in 0..5 {
+            m.learn(&paint(k, false)).unwrap();
+        }
+        let mut mask = Mask::new(1, 1);
+        // Whole frame zone (no calibration): a shadow may fall anywhere.
+        let st = m.segment(&paint(9, true), &mut mask).unwrap();
+        let b = st.person_box.expect("the shoe is found");
+        assert!(
+            b.min_x <= 12 && b.max_x >= 48 && b.min_y <= 42 && b.max_y >= 68 && b.max_x <= 54,
+            "{b:?}"
+        );
+        let shoe_px = 40 * 30;
+        assert!(
+            st.person_px.abs_diff(shoe_px) < shoe_px / 20,
+            "{} pixels for a shoe of {shoe_px}",
+            st.person_px
+        );
     }
 
     #[test]
