@@ -378,6 +378,19 @@ impl Mp4VideoReader {
             }
             Err(msg) => {
                 let pictures = scan_mdat(path, size)?;
+                if pictures.is_empty() {
+                    // Cut before its index with nothing recoverable (a codec other than
+                    // H.264 cannot be walked without the index): say so, rather than let
+                    // the recording report "no frames" for a file that is there.
+                    return Err(verr(
+                        path,
+                        format!(
+                            "{msg}; no complete H.264 picture in the media data either: \
+                             the file was cut before its index was written (frames of \
+                             other codecs cannot be recovered without it)"
+                        ),
+                    ));
+                }
                 warnings.push(format!(
                     "{}: {msg}; recovered {} frame(s) from the media data (file cut short?)",
                     path.display(),
