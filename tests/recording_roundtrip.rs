@@ -492,7 +492,10 @@ fn mp4s_openh264_cannot_read_are_decoded_through_ffmpeg() {
             let bytes = std::fs::read(&p).unwrap();
             let moov = bytes.windows(4).rposition(|w| w == b"moov").unwrap();
             std::fs::write(&p, &bytes[..moov - 4]).unwrap();
-            let e = Recording::open(&dir).err().expect("a cut MPEG-4 file").to_string();
+            let e = Recording::open(&dir)
+                .err()
+                .expect("a cut MPEG-4 file")
+                .to_string();
             assert!(
                 e.contains("side.mp4") && e.contains("cut before its index"),
                 "{e}"

@@ -1425,13 +1425,27 @@ pub fn backdrop_from_border(frame: &RgbImage) -> RgbImage {
 mod tests {
     use super::*;
 
-    fn scene(w: u32, h: u32, person: bool, shadow: bool, seed: u32) -> RgbImage {
+    /// An image whose pixel (x, y) is `colour(x, y, r)`, with `r` from a xorshift
+    /// sequence seeded by `seed` (the noise).
+    fn painted(
+        w: u32,
+        h: u32,
+        seed: u32,
+        mut colour: impl FnMut(u32, u32, u32) -> [u8; 3],
+    ) -> RgbImage {
         let mut img = RgbImage::new(w, h);
         let mut s = seed.wrapping_mul(2654435761).wrapping_add(1);
         for (x, y, p) in img.enumerate_pixels_mut() {
             s ^= s << 13;
             s ^= s >> 17;
             s ^= s << 5;
+            p.0 = colour(x, y, s);
+        }
+        img
+    }
+
+    fn scene(w: u32, h: u32, person: bool, shadow: bool, seed: u32) -> RgbImage {
+        painted(w, h, seed, |x, y, s| {
             let n = (s % 7) as i32 - 3;
             let base = 150 + ((x / 8 + y / 8) % 2) as i32 * 20;
             let mut c = [base + n, base + 5 + n, base - 10 + n];
@@ -1441,9 +1455,8 @@ mod tests {
             if person && (40..70).contains(&x) && (20..90).contains(&y) {
                 c = [200 + n, 120 + n, 90 + n];
             }
-            p.0 = c.map(|v| v.clamp(0, 255) as u8);
-        }
-        img
+            c.map(|v| v.clamp(0, 255) as u8)
+        })
     }
 
     #[test]
@@ -1565,12 +1578,7 @@ mod tests {
         let n = across.iter().map(|v| v * v).sum::<f32>().sqrt();
         let shoe = [0, 1, 2].map(|c| 0.6 * floor[c] + 11.0 * across[c] / n);
         let paint = |seed: u32, figures: bool| {
-            let mut img = RgbImage::new(w, h);
-            let mut s = seed.wrapping_mul(2654435761).wrapping_add(1);
-            for (x, y, p) in img.enumerate_pixels_mut() {
-                s ^= s << 13;
-                s ^= s >> 17;
-                s ^= s << 5;
+            painted(w, h, seed, |x, y, s| {
                 let n = (s % 5) as f32 - 2.0;
                 let c = if figures && (10..50).contains(&x) && (40..70).contains(&y) {
                     shoe
@@ -1579,9 +1587,8 @@ mod tests {
                 } else {
                     floor
                 };
-                p.0 = c.map(|v| (v + n).round().clamp(0.0, 255.0) as u8);
-            }
-            img
+                c.map(|v| (v + n).round().clamp(0.0, 255.0) as u8)
+            })
         };
         let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
         for k in 0..5 {
