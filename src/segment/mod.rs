@@ -5,11 +5,14 @@
 //! brightness within `[shadow_min_brightness, highlight_max_brightness]` with little
 //! chromaticity change (Horprasert, Harwood and Davis 1999: brightness distortion
 //! `alpha = I.E/|E|^2`, chromaticity distortion `|I - alpha E|`). That tolerates sensor
-//! noise, small exposure changes and the shadow at the feet. The chromaticity tolerance
-//! is an angle: the noise radius seen from the unshadowed colour, so it shrinks with the
-//! brightness ratio (`|I - alpha E| <= chroma_k tau alpha / g`). A shadow scales the
-//! backdrop's colour and keeps its direction; a dark shoe of the floor's hue turns it
-//! by more than the floor's own variation does at that brightness.
+//! noise, small exposure changes and the shadow at the feet. Where a shadow is explained
+//! (the shadow zone, below), the chromaticity tolerance is an angle: the noise radius
+//! seen from the unshadowed colour, so it shrinks with the brightness ratio
+//! (`|I - alpha E| <= chroma_k tau alpha / g`). A shadow scales the backdrop's colour and
+//! keeps its direction; a dark shoe of the floor's hue turns it by more than the floor's
+//! own variation does at that brightness. Elsewhere only the exposure varies and the
+//! tolerance stays the full radius (compression's colour bleeding at edges stays within
+//! it).
 //!
 //! A cast shadow is only explained where one can fall: the *shadow zone*, the pixels whose
 //! viewing ray meets the floor within [`FLOOR_SHADOW_RADIUS_M`] of the mark
@@ -216,8 +219,9 @@ pub struct SegmentOptions {
     pub noise_k: f32,
     pub min_distance: f32,
     /// Chromaticity distortion above which a pixel is foreground, in units of the noise
-    /// radius scaled by the pixel's brightness ratio to the exposed model (at most 1):
-    /// the tolerance is the angle the noise radius subtends at the unshadowed colour.
+    /// radius; in the shadow zone, of the noise radius scaled by the pixel's brightness
+    /// ratio to the exposed model (at most 1): the angle the noise radius subtends at the
+    /// unshadowed colour.
     pub chroma_k: f32,
     /// In the shadow zone, darker than this fraction of the model brightness is
     /// foreground; between this and 1 (with low chromaticity distortion) is shadow, kept
@@ -840,7 +844,12 @@ impl BackgroundModel {
         // |I - gE|^2 = |d - (g-1)E|^2
         let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
         let chroma_ee = dd * ee - de * de; // |I - alpha E|^2 |E|^2
-        let lit_ee = ((ee + de) / g).clamp(0.0, ee); // (alpha / g) |E|^2, at most |E|^2
+        // In the shadow zone: (alpha / g) |E|^2, at most |E|^2.
+        let lit_ee = if m.in_zone() {
+            ((ee + de) / g).clamp(0.0, ee)
+        } else {
+            ee
+        };
         let ck = o.chroma_k * o.chroma_k;
         let darkest = if m.in_zone() {
             o.shadow_min_brightness
@@ -1018,11 +1027,12 @@ impl BackgroundModel {
                 let de = (dr * er + dg * eg + db * eb) as f32;
                 let ee = (er * er + eg * eg + eb * eb) as f32;
                 let tau2 = tau2 as f32;
-                let klo = klo_lit + zone as f32 * klo_step;
+                let zone = zone as f32; // 1 in the shadow zone, else 0
+                let klo = klo_lit + zone * klo_step;
                 let chroma_ee = dd * ee - de * de;
-                // The chromaticity tolerance scales with the brightness ratio (see
-                // `chroma_k`): (alpha / g) |E|^2, at most |E|^2.
-                let lit_ee = ((ee + de) * inv_g).clamp(0.0, ee);
+                // In the shadow zone the chromaticity tolerance scales with the brightness
+                // ratio (see `chroma_k`): (alpha / g) |E|^2, at most |E|^2.
+                let lit_ee = ee + zone * (((ee + de) * inv_g).clamp(0.0, ee) - ee);
                 // |I - gE|^2 = |d - (g-1)E|^2
                 let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
                 let cand = dg2 > tau2;
@@ -1608,6 +1618,28 @@ mod tests {
             "{} pixels for a shoe of {shoe_px}",
             st.person_px
         );
+        // Outside the shadow zone only the exposure varies and the tolerance stays the
+        // full noise radius: a patch at 90 % brightness turned by 12.8 levels (beyond
+        // the angle's 12.6, within the radius's 14) is backdrop there, not person.
+        let dim = [0, 1, 2].map(|c| 0.9 * floor[c] + 12.8 * across[c] / n);
+        let frame = painted(w, h, 11, |x, y, s| {
+            let n = (s % 5) as f32 - 2.0;
+            let c = if (30..90).contains(&x) && (20..60).contains(&y) {
+                dim
+            } else {
+                floor
+            };
+            c.map(|v| (v + n).round().clamp(0.0, 255.0) as u8)
+        });
+        let mut zone = Mask::new(w, h);
+        for y in 90..h {
+            for x in 0..w {
+                zone.data[(y * w + x) as usize] = 255;
+            }
+        }
+        m.set_shadow_zone(&zone).unwrap();
+        let st = m.segment(&frame, &mut mask).unwrap();
+        assert_eq!(st.person_px, 0, "{:?}", st.person_box);
     }
 
     #[test]
