@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
 # Generality probes of the station beyond the synthetic renderer's own look: posed
 # subjects, bodies outside the shape library, a white / black / grey studio backdrop,
-# other resolutions, JPEG frames, and MP4s as ffmpeg writes them (High profile, B-frames).
-# Needs ffmpeg for those.
+# other resolutions, JPEG frames, MP4s as ffmpeg writes them (High profile, B-frames;
+# needs ffmpeg), and cast shadows coloured as under a warm key and a cool ambient light.
 # Needs python3 with opencv-python-headless and numpy. Usage: bash tools/probes.sh [DIR]
 set -euo pipefail
 dir=${1:-/tmp/fitstation-probes}
@@ -50,4 +50,9 @@ for how in 0.5 1.5 jpeg:70 h264:1 h264:1.5; do
   python3 tools/probe_rescale.py "$base" "$dir/rs_$name" "$how"
   "$bin" replay "$dir/rs_$name" --out "$dir/out_rs_$name" > /dev/null 2>&1 || true
   summary "$base" "$dir/out_rs_$name" "$how"
+done
+for strength in 1 2; do
+  python3 tools/probe_shadow_tint.py "$base" "$dir/tint_$strength" "$strength"
+  "$bin" replay "$dir/tint_$strength" --out "$dir/out_tint_$strength" > /dev/null 2>&1 || true
+  summary "$base" "$dir/out_tint_$strength" "tint$strength"
 done
