@@ -843,7 +843,8 @@ impl BackgroundModel {
         let gm1 = g - 1.0;
         // |I - gE|^2 = |d - (g-1)E|^2
         let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
-        let chroma_ee = dd * ee - de * de; // |I - alpha E|^2 |E|^2
+        // |I - alpha E|^2 |E|^2
+        let chroma_ee = dd * ee - de * de;
         // In the shadow zone: (alpha / g) |E|^2, at most |E|^2.
         let lit_ee = if m.in_zone() {
             ((ee + de) / g).clamp(0.0, ee)
@@ -1454,6 +1455,13 @@ mod tests {
         img
     }
 
+    /// A shadow zone of the rows from `y0` down (the floor's image).
+    fn zone_from_row(w: u32, h: u32, y0: u32) -> Mask {
+        let mut zone = Mask::new(w, h);
+        zone.data[(y0 * w) as usize..].fill(255);
+        zone
+    }
+
     fn scene(w: u32, h: u32, person: bool, shadow: bool, seed: u32) -> RgbImage {
         painted(w, h, seed, |x, y, s| {
             let n = (s % 7) as i32 - 3;
@@ -1558,13 +1566,7 @@ mod tests {
         assert_eq!(m.segment(&frame, &mut mask).unwrap().person_px, 0);
         // Zone on the bottom rows only (the floor): the figure is found, a shadow on the
         // floor rows is not.
-        let mut zone = Mask::new(w, h);
-        for y in 85..h {
-            for x in 0..w {
-                zone.data[(y * w + x) as usize] = 255;
-            }
-        }
-        m.set_shadow_zone(&zone).unwrap();
+        m.set_shadow_zone(&zone_from_row(w, h, 85)).unwrap();
         let st = m.segment(&frame, &mut mask).unwrap();
         let b = st.person_box.unwrap();
         assert!(
@@ -1587,26 +1589,27 @@ mod tests {
         let across = [-1.0f32, 0.5, 1.2]; // nearly orthogonal to the floor's colour
         let n = across.iter().map(|v| v * v).sum::<f32>().sqrt();
         let shoe = [0, 1, 2].map(|c| 0.6 * floor[c] + 11.0 * across[c] / n);
-        let paint = |seed: u32, figures: bool| {
+        // The floor with rectangles (columns, rows, colour) painted over it, plus noise.
+        type Patch = (std::ops::Range<u32>, std::ops::Range<u32>, [f32; 3]);
+        let paint = |seed: u32, patches: &[Patch]| {
             painted(w, h, seed, |x, y, s| {
                 let n = (s % 5) as f32 - 2.0;
-                let c = if figures && (10..50).contains(&x) && (40..70).contains(&y) {
-                    shoe
-                } else if figures && (70..110).contains(&x) && (40..70).contains(&y) {
-                    floor.map(|v| 0.6 * v)
-                } else {
-                    floor
-                };
+                let c = patches
+                    .iter()
+                    .find(|(xs, ys, _)| xs.contains(&x) && ys.contains(&y))
+                    .map_or(floor, |p| p.2);
                 c.map(|v| (v + n).round().clamp(0.0, 255.0) as u8)
             })
         };
         let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
         for k in 0..5 {
-            m.learn(&paint(k, false)).unwrap();
+            m.learn(&paint(k, &[])).unwrap();
         }
         let mut mask = Mask::new(1, 1);
         // Whole frame zone (no calibration): a shadow may fall anywhere.
-        let st = m.segment(&paint(9, true), &mut mask).unwrap();
+        let shadow = floor.map(|v| 0.6 * v);
+        let frame = paint(9, &[(10..50, 40..70, shoe), (70..110, 40..70, shadow)]);
+        let st = m.segment(&frame, &mut mask).unwrap();
         let b = st.person_box.expect("the shoe is found");
         assert!(
             b.min_x <= 12 && b.max_x >= 48 && b.min_y <= 42 && b.max_y >= 68 && b.max_x <= 54,
@@ -1622,22 +1625,8 @@ mod tests {
         // full noise radius: a patch at 90 % brightness turned by 12.8 levels (beyond
         // the angle's 12.6, within the radius's 14) is backdrop there, not person.
         let dim = [0, 1, 2].map(|c| 0.9 * floor[c] + 12.8 * across[c] / n);
-        let frame = painted(w, h, 11, |x, y, s| {
-            let n = (s % 5) as f32 - 2.0;
-            let c = if (30..90).contains(&x) && (20..60).contains(&y) {
-                dim
-            } else {
-                floor
-            };
-            c.map(|v| (v + n).round().clamp(0.0, 255.0) as u8)
-        });
-        let mut zone = Mask::new(w, h);
-        for y in 90..h {
-            for x in 0..w {
-                zone.data[(y * w + x) as usize] = 255;
-            }
-        }
-        m.set_shadow_zone(&zone).unwrap();
+        let frame = paint(11, &[(30..90, 20..60, dim)]);
+        m.set_shadow_zone(&zone_from_row(w, h, 90)).unwrap();
         let st = m.segment(&frame, &mut mask).unwrap();
         assert_eq!(st.person_px, 0, "{:?}", st.person_box);
     }
@@ -1743,9 +1732,7 @@ mod tests {
             m.learn(&frame(false)).unwrap();
         }
         // The floor (rows 60 and below) is the shadow zone.
-        let mut zone = Mask::new(w, h);
-        zone.data[(60 * w) as usize..].fill(255);
-        m.set_shadow_zone(&zone).unwrap();
+        m.set_shadow_zone(&zone_from_row(w, h, 60)).unwrap();
         let mut mask = Mask::new(1, 1);
         m.segment(&frame(true), &mut mask).unwrap();
         let mut runs = RunComponents::default();
