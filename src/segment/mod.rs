@@ -11,8 +11,8 @@
 //! (`|I - alpha E| <= chroma_k tau alpha / g`). A shadow scales the backdrop's colour and
 //! keeps its direction; a dark shoe of the floor's hue turns it by more than the floor's
 //! own variation does at that brightness. Elsewhere only the exposure varies and the
-//! tolerance stays the full radius (compression's colour bleeding at edges stays within
-//! it).
+//! tolerance stays the full radius (applied there too, it refused one JPEG frame for
+//! arms touching the torso).
 //!
 //! A cast shadow is only explained where one can fall: the *shadow zone*, the pixels whose
 //! viewing ray meets the floor within [`FLOOR_SHADOW_RADIUS_M`] of the mark
