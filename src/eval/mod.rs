@@ -470,6 +470,12 @@ impl EvalTable {
             .collect()
     }
 
+    /// The rows, their summary, stage timings and failures as JSON (`eval --json`).
+    pub fn to_json(&self) -> serde_json::Value {
+        serde_json::json!({ "rows": self.rows, "summary": self.summary(),
+            "timings_ms": self.timing_summary(), "failures": self.failures })
+    }
+
     /// The plain-text table.
     pub fn to_text(&self) -> String {
         let mut s = String::new();
@@ -596,8 +602,13 @@ fn clip(s: &str, n: usize) -> String {
 #[derive(Debug, Clone, clap::Args)]
 pub struct EvalArgs {
     /// Recording folders (each with its `<recording>.truth/` beside it).
-    #[arg(required = true)]
+    #[arg(required_unless_present = "sets")]
     pub recordings: Vec<PathBuf>,
+    /// A whole evaluation set, `NAME=DIR`: every recording in DIR that has its truth
+    /// folder beside it. Repeat for several sets: each set gets its own table, then one
+    /// table puts the sets side by side (MAE, bias and worst single error per girth).
+    #[arg(long = "set", value_name = "NAME=DIR")]
+    pub sets: Vec<String>,
     /// Print JSON instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -632,18 +643,129 @@ pub fn run(args: EvalArgs) -> anyhow::Result<()> {
     run_with(&args, &mut source)
 }
 
-/// Runs the evaluation with fits from `fit` (one call per recording).
+/// One named evaluation set of `--set NAME=DIR`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct EvalSet {
+    pub name: String,
+    pub recordings: Vec<PathBuf>,
+}
+
+/// Parses `NAME=DIR` and lists DIR's recordings: its sub-folders (sorted by name) that
+/// have a truth folder beside them.
+pub fn parse_set(spec: &str) -> anyhow::Result<EvalSet> {
+    let (name, dir) = spec
+        .split_once('=')
+        .filter(|(n, d)| !n.is_empty() && !d.is_empty())
+        .ok_or_else(|| anyhow::anyhow!("--set takes NAME=DIR, got '{spec}'"))?;
+    let dir = Path::new(dir);
+    let entries = std::fs::read_dir(dir)
+        .map_err(|e| anyhow::anyhow!("--set {name}: cannot read {}: {e}", dir.display()))?;
+    let mut recordings: Vec<PathBuf> = entries
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter(|p| p.is_dir() && crate::synth::truth_dir(p).is_dir())
+        .collect();
+    recordings.sort();
+    anyhow::ensure!(
+        !recordings.is_empty(),
+        "--set {name}: {} holds no recording with a truth folder beside it",
+        dir.display()
+    );
+    Ok(EvalSet {
+        name: name.to_string(),
+        recordings,
+    })
+}
+
+/// The sets side by side: one row per measurement, per set `MAE / bias / worst` (mm),
+/// then how many subjects of each set were scored.
+pub fn sets_side_by_side(sets: &[(String, EvalTable)]) -> String {
+    let summaries: Vec<Vec<MeasurementSummary>> = sets.iter().map(|(_, t)| t.summary()).collect();
+    let mut names: Vec<&String> = summaries.iter().flatten().map(|m| &m.name).collect();
+    names.sort();
+    names.dedup();
+    const COL: usize = 24;
+    let mut s = format!("{:<20}", "MAE / bias / worst mm");
+    for (n, _) in sets {
+        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
+    }
+    s.push('\n');
+    for name in names {
+        s.push_str(&format!("{:<20}", clip(name, 20)));
+        for sum in &summaries {
+            let cell = sum
+                .iter()
+                .find(|m| &m.name == name)
+                .map_or("-".into(), |m| {
+                    format!(
+                        "{:.1} / {:+.1} / {:+.1}",
+                        m.mean_abs_error_mm, m.mean_bias_mm, m.worst_error_mm
+                    )
+                });
+            s.push_str(&format!(" {cell:>COL$}"));
+        }
+        s.push('\n');
+    }
+    s.push_str(&format!("{:<20}", "subjects fitted"));
+    for (_, t) in sets {
+        let cell = format!("{} of {}", t.rows.len(), t.rows.len() + t.failures.len());
+        s.push_str(&format!(" {cell:>COL$}"));
+    }
+    s.push('\n');
+    s
+}
+
+/// Runs the evaluation with fits from `fit` (one call per recording): the recordings
+/// given, or each `--set` in turn and then the sets side by side.
 pub fn run_with(args: &EvalArgs, fit: &mut FitSource<'_>) -> anyhow::Result<()> {
+    if args.sets.is_empty() {
+        return run_one(args, &args.recordings, args.report.as_deref(), fit).map(|_| ());
+    }
+    let sets = args
+        .sets
+        .iter()
+        .map(|s| parse_set(s))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let mut tables = Vec::new();
+    for set in &sets {
+        if !args.json {
+            println!("== set {} ({} recordings)", set.name, set.recordings.len());
+        }
+        let report = args.report.as_ref().map(|r| r.join(&set.name));
+        let table = run_one(args, &set.recordings, report.as_deref(), fit)?;
+        tables.push((set.name.clone(), table));
+    }
+    if args.json {
+        let v: serde_json::Map<String, serde_json::Value> = tables
+            .iter()
+            .map(|(n, t)| (n.clone(), t.to_json()))
+            .collect();
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&serde_json::json!({ "sets": v }))?
+        );
+    } else {
+        println!("\n== sets side by side\n{}", sets_side_by_side(&tables));
+    }
+    Ok(())
+}
+
+/// Scores `recordings` and prints (and with `report`, writes) their table.
+fn run_one(
+    args: &EvalArgs,
+    recordings: &[PathBuf],
+    report: Option<&Path>,
+    fit: &mut FitSource<'_>,
+) -> anyhow::Result<EvalTable> {
     let mut table = EvalTable::default();
     let mut thumbs = Vec::new();
-    let n = args.recordings.len();
-    for (i, rec) in args.recordings.iter().enumerate() {
+    let n = recordings.len();
+    for (i, rec) in recordings.iter().enumerate() {
         progress(i, n, rec);
         let tdir = crate::synth::truth_dir(rec);
         let scored = fit(rec).and_then(|r| Ok((evaluate(&tdir, &r)?, r)));
         match scored {
             Ok((row, r)) => {
-                if args.report.is_some() {
+                if report.is_some() {
                     thumbs.push(
                         html::overlay_thumbnails(rec, &tdir, &r.avatar).unwrap_or_else(|e| {
                             table
@@ -659,21 +781,19 @@ pub fn run_with(args: &EvalArgs, fit: &mut FitSource<'_>) -> anyhow::Result<()> 
         }
     }
     progress(n, n, Path::new(""));
-    if args.json {
-        let v = serde_json::json!({ "rows": table.rows, "summary": table.summary(),
-            "timings_ms": table.timing_summary(), "failures": table.failures });
-        println!("{}", serde_json::to_string_pretty(&v)?);
-    } else {
+    if args.json && args.sets.is_empty() {
+        println!("{}", serde_json::to_string_pretty(&table.to_json())?);
+    } else if !args.json {
         print!("{}", table.to_text());
     }
-    if let Some(dir) = &args.report {
+    if let Some(dir) = report {
         std::fs::create_dir_all(dir)?;
         let p = dir.join("index.html");
         std::fs::write(&p, html::report(&table, &thumbs))?;
         eprintln!("report: {}", p.display());
     }
     anyhow::ensure!(!table.rows.is_empty(), "no recording could be scored");
-    Ok(())
+    Ok(table)
 }
 
 /// A plain stderr progress bar.
@@ -703,6 +823,90 @@ fn progress(i: usize, n: usize, current: &Path) {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn row(subject: &str, errors: &[(&str, f64)]) -> EvalRow {
+        EvalRow {
+            subject: subject.into(),
+            measurements: errors
+                .iter()
+                .map(|&(name, e)| MeasurementCompare {
+                    name: name.into(),
+                    true_mm: 900.0,
+                    fitted_mm: Some(900.0 + e),
+                    error_mm: Some(e),
+                })
+                .collect(),
+            surface: None,
+            mask_iou: BTreeMap::new(),
+            landmarks: LandmarkErrors::default(),
+            body_landmarks: LandmarkErrors::default(),
+            timings_ms: BTreeMap::new(),
+            profile: Vec::new(),
+            settled_step_mm: BTreeMap::new(),
+        }
+    }
+
+    #[test]
+    fn sets_side_by_side_shows_each_sets_mae_bias_and_worst() {
+        let a = EvalTable {
+            rows: vec![
+                row("subject_00", &[("chest_girth", 4.0), ("hip_girth", -2.0)]),
+                row("subject_01", &[("chest_girth", -10.0), ("hip_girth", 6.0)]),
+            ],
+            failures: vec!["subject_02: no frame".into()],
+        };
+        let b = EvalTable {
+            rows: vec![row("subject_00", &[("chest_girth", 30.0)])],
+            failures: Vec::new(),
+        };
+        let t = sets_side_by_side(&[("library".into(), a), ("ansur".into(), b)]);
+        let chest = t
+            .lines()
+            .find(|l| l.starts_with("chest_girth"))
+            .expect("chest row");
+        assert!(chest.contains("7.0 / -3.0 / -10.0"), "{chest}");
+        assert!(chest.contains("30.0 / +30.0 / +30.0"), "{chest}");
+        let hip = t
+            .lines()
+            .find(|l| l.starts_with("hip_girth"))
+            .expect("hip row");
+        assert!(
+            hip.contains("4.0 / +2.0 / +6.0") && hip.trim_end().ends_with('-'),
+            "{hip}"
+        );
+        let fitted = t
+            .lines()
+            .find(|l| l.starts_with("subjects"))
+            .expect("count row");
+        assert!(
+            fitted.contains("2 of 3") && fitted.contains("1 of 1"),
+            "{fitted}"
+        );
+    }
+
+    #[test]
+    fn a_set_lists_the_recordings_with_truth_and_bad_specs_are_said() {
+        let dir = std::env::temp_dir().join(format!("fitstation_evalset_{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        for d in [
+            "subject_01",
+            "subject_01.truth",
+            "subject_00",
+            "subject_00.truth",
+            "notes",
+        ] {
+            std::fs::create_dir_all(dir.join(d)).expect("mkdir");
+        }
+        let set = parse_set(&format!("lib={}", dir.display())).expect("set");
+        assert_eq!(set.name, "lib");
+        assert_eq!(
+            set.recordings,
+            vec![dir.join("subject_00"), dir.join("subject_01")]
+        );
+        assert!(parse_set("nodir").is_err());
+        assert!(parse_set(&format!("empty={}", dir.join("notes").display())).is_err());
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 
     #[test]
     fn truth_landmark_names_map_to_the_stations() {
