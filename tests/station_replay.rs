@@ -89,6 +89,33 @@ fn replay_measures_a_synthetic_subject_close_to_its_truth() {
             "{key}: fitted {got:.1} mm, truth {want:.1} mm"
         );
     }
+    // Every measurement carries how sure the station is (its `±`, mm): finite, positive,
+    // and a measurement is listed as uncertain exactly when its `±` exceeds its ANSUR II
+    // observer tolerance.
+    let uncertain: Vec<&str> = report["uncertain"]
+        .as_array()
+        .expect("uncertain list")
+        .iter()
+        .filter_map(|v| v.as_str())
+        .collect();
+    for (key, tolerance) in [
+        ("stature", 6.0),
+        ("chest_girth", 14.0),
+        ("waist_girth", 12.0),
+        ("hip_girth", 12.0),
+        ("thigh_girth_left", 6.0),
+        ("thigh_girth_right", 6.0),
+    ] {
+        let pm = report["uncertainty_mm"][key]
+            .as_f64()
+            .unwrap_or_else(|| panic!("no uncertainty of {key}"));
+        eprintln!("{key}: ±{pm:.1} mm");
+        assert!(pm > 0.0 && pm < 200.0, "{key}: ±{pm}");
+        // (The report rounds to 0.1 mm; the flag is decided before rounding.)
+        if (pm - tolerance).abs() > 0.05 {
+            assert_eq!(uncertain.contains(&key), pm > tolerance, "{key}: ±{pm}");
+        }
+    }
     // Issue 4's 10 mm on landmark heights for the fitted body's own (`body_landmarks`).
     // The silhouettes' landmarks smoothed over the fitted frames (`landmarks`) get 12 mm:
     // what a silhouette shows of the fold under the arm differs from subject to subject

@@ -622,6 +622,9 @@ impl FrameProcessor for DemoProcessor {
                         name: name.to_string(),
                         value_mm: v,
                         stability_mm: spread,
+                        // The demo animates values without a fit behind them.
+                        uncertainty_mm: f64::INFINITY,
+                        uncertain: false,
                     });
                 }
                 snap.phase = if all_settled {

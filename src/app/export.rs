@@ -55,22 +55,33 @@ pub fn export_avatar(
     Ok(path)
 }
 
-/// Measurements as JSON: `{"measurements_mm": {...}, "stability_mm": {...}}`, values
-/// rounded to 0.1 mm.
+/// Measurements as JSON: `{"measurements_mm": {...}, "stability_mm": {...},
+/// "uncertainty_mm": {...}, "uncertain": [...]}`, values rounded to 0.1 mm (an unknown
+/// uncertainty is left out).
 pub fn measurements_json(m: &[MeasurementValue]) -> serde_json::Value {
     let round = |v: f64| (v * 10.0).round() / 10.0;
     let mut values = serde_json::Map::new();
     let mut stability = serde_json::Map::new();
+    let mut uncertainty = serde_json::Map::new();
     for v in m {
         values.insert(v.name.clone(), serde_json::json!(round(v.value_mm)));
         stability.insert(v.name.clone(), serde_json::json!(round(v.stability_mm)));
+        if v.uncertainty_mm.is_finite() {
+            uncertainty.insert(v.name.clone(), serde_json::json!(round(v.uncertainty_mm)));
+        }
     }
-    serde_json::json!({ "measurements_mm": values, "stability_mm": stability })
+    let uncertain: Vec<&str> = m
+        .iter()
+        .filter(|v| v.uncertain)
+        .map(|v| v.name.as_str())
+        .collect();
+    serde_json::json!({ "measurements_mm": values, "stability_mm": stability,
+        "uncertainty_mm": uncertainty, "uncertain": uncertain })
 }
 
 /// Measurements as CSV with a header line.
 pub fn measurements_csv(m: &[MeasurementValue]) -> String {
-    let mut s = String::from("name,value_mm,stability_mm\n");
+    let mut s = String::from("name,value_mm,stability_mm,uncertainty_mm\n");
     for v in m {
         // Names are report keys (no commas); quote defensively anyway.
         let name = if v.name.contains([',', '"']) {
@@ -78,8 +89,13 @@ pub fn measurements_csv(m: &[MeasurementValue]) -> String {
         } else {
             v.name.clone()
         };
+        let pm = if v.uncertainty_mm.is_finite() {
+            format!("{:.1}", v.uncertainty_mm)
+        } else {
+            String::new()
+        };
         s.push_str(&format!(
-            "{},{:.1},{:.1}\n",
+            "{},{:.1},{:.1},{pm}\n",
             name, v.value_mm, v.stability_mm
         ));
     }
@@ -124,11 +140,15 @@ mod tests {
                 name: "chest_girth".into(),
                 value_mm: 1001.04,
                 stability_mm: 0.26,
+                uncertainty_mm: 9.04,
+                uncertain: false,
             },
             MeasurementValue {
                 name: "odd,name".into(),
                 value_mm: 5.0,
                 stability_mm: 0.0,
+                uncertainty_mm: f64::INFINITY,
+                uncertain: true,
             },
         ]
     }
@@ -141,11 +161,14 @@ mod tests {
             serde_json::json!(1001.0)
         );
         assert_eq!(j["stability_mm"]["chest_girth"], serde_json::json!(0.3));
+        assert_eq!(j["uncertainty_mm"]["chest_girth"], serde_json::json!(9.0));
+        assert!(j["uncertainty_mm"].get("odd,name").is_none());
+        assert_eq!(j["uncertain"], serde_json::json!(["odd,name"]));
         let csv = measurements_csv(&values());
         let lines: Vec<&str> = csv.lines().collect();
-        assert_eq!(lines[0], "name,value_mm,stability_mm");
-        assert_eq!(lines[1], "chest_girth,1001.0,0.3");
-        assert_eq!(lines[2], "\"odd,name\",5.0,0.0");
+        assert_eq!(lines[0], "name,value_mm,stability_mm,uncertainty_mm");
+        assert_eq!(lines[1], "chest_girth,1001.0,0.3,9.0");
+        assert_eq!(lines[2], "\"odd,name\",5.0,0.0,");
     }
 
     #[test]

@@ -247,6 +247,8 @@ mod tests {
             name: "chest_girth".into(),
             value_mm: v,
             stability_mm: 1.0,
+            uncertainty_mm: 8.0,
+            uncertain: false,
         }]
     }
 

@@ -711,13 +711,19 @@ impl StationApp {
             egui::Grid::new("result_card").striped(true).show(ui, |ui| {
                 for m in &card.measurements {
                     ui.label(pretty_name(&m.name));
-                    // Shown after the settle timeout: the spread goes with the value.
-                    let text = if card.settled {
-                        format!("{:.0} mm", m.value_mm)
+                    // How sure the station is goes with the value; shown after the settle
+                    // timeout, the frame-to-frame spread adds to it.
+                    let pm = if card.settled {
+                        m.uncertainty_mm
                     } else {
-                        format!("{:.0} ±{:.0} mm", m.value_mm, m.stability_mm)
+                        m.uncertainty_mm.max(m.stability_mm)
                     };
-                    ui.label(RichText::new(text).size(18.0).strong());
+                    ui.label(
+                        RichText::new(value_text(m.value_mm, pm))
+                            .size(18.0)
+                            .strong(),
+                    );
+                    uncertainty_flag(ui, m);
                     ui.end_row();
                 }
             });
@@ -734,14 +740,17 @@ impl StationApp {
         } else {
             egui::Grid::new("measurements")
                 .striped(true)
-                .num_columns(3)
+                .num_columns(4)
                 .show(ui, |ui| {
                     for m in &measurements {
                         ui.label(pretty_name(&m.name));
                         fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
-                            ui.label(RichText::new(format!("{:.1} mm", m.value_mm)).monospace());
+                            ui.label(
+                                RichText::new(value_text(m.value_mm, m.uncertainty_mm)).monospace(),
+                            );
                         });
                         stability_indicator(ui, m.stability_mm);
+                        uncertainty_flag(ui, m);
                         ui.end_row();
                     }
                 });
@@ -1460,15 +1469,46 @@ fn stability_indicator(ui: &mut egui::Ui, spread_mm: f64) {
     fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
         let (r, _) = ui.allocate_exact_size(Vec2::splat(10.0), egui::Sense::hover());
         ui.painter().circle_filled(r.center(), 5.0, colour);
-        ui.label(RichText::new(format!("±{spread_mm:.1} {word}")).small());
+        ui.label(RichText::new(format!("{word}, spread {spread_mm:.1}")).small());
     });
+}
+
+/// A measurement's value with how sure the station is of it (`±` two standard deviations,
+/// `station::uncertainty`), or the value alone while that is unknown.
+fn value_text(value_mm: f64, pm_mm: f64) -> String {
+    if pm_mm.is_finite() {
+        format!("{value_mm:.0} ±{pm_mm:.0} mm")
+    } else {
+        format!("{value_mm:.0} mm")
+    }
+}
+
+/// Flags a measurement the station did not see well enough to vouch for (its `±` beyond
+/// the ANSUR II observer tolerance).
+fn uncertain_flag_text(m: &MeasurementValue) -> Option<&'static str> {
+    m.uncertain.then_some("not sure: check by hand")
+}
+
+fn uncertainty_flag(ui: &mut egui::Ui, m: &MeasurementValue) {
+    match uncertain_flag_text(m) {
+        Some(t) => {
+            ui.label(
+                RichText::new(t)
+                    .small()
+                    .color(Color32::from_rgb(230, 150, 40)),
+            );
+        }
+        None => {
+            ui.label("");
+        }
+    }
 }
 
 /// Widths of the measurement grid's value and stability cells (points): wide enough for
 /// any value, and fixed, because a grid whose column widths change asks egui for one
 /// more frame to lay itself out again (a whole extra frame of software rendering,
 /// whenever a value gains a digit or a word changes).
-const VALUE_CELL_WIDTH: f32 = 96.0;
+const VALUE_CELL_WIDTH: f32 = 120.0;
 const STABILITY_CELL_WIDTH: f32 = 130.0;
 
 /// A grid cell exactly `width` points wide (unless its content is wider), laid out left

@@ -96,6 +96,8 @@ pub struct MeasurementCompare {
     pub fitted_mm: Option<f64>,
     /// fitted - true.
     pub error_mm: Option<f64>,
+    /// The report's `uncertainty_mm` of this measurement (its `±`), when given.
+    pub pm_mm: Option<f64>,
 }
 
 /// Median and 95th percentile of a stage's time, milliseconds.
@@ -149,20 +151,24 @@ pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalErr
                 .to_string()
         })
         .unwrap_or_default();
-    let reported = result
-        .report_json
-        .get("measurements_mm")
-        .and_then(|m| m.as_object());
+    let reported_key = |key: &str, name: &str| {
+        result
+            .report_json
+            .get(key)
+            .and_then(|m| m.get(name))
+            .and_then(|v| v.as_f64())
+    };
     let measurements = truth
         .measurements_mm
         .iter()
         .map(|(name, &t)| {
-            let f = reported.and_then(|m| m.get(name)).and_then(|v| v.as_f64());
+            let f = reported_key("measurements_mm", name);
             MeasurementCompare {
                 name: name.clone(),
                 true_mm: t,
                 fitted_mm: f,
                 error_mm: f.map(|f| f - t),
+                pm_mm: reported_key("uncertainty_mm", name),
             }
         })
         .collect();
@@ -385,6 +391,11 @@ pub struct MeasurementSummary {
     /// The error of largest magnitude (signed).
     pub worst_error_mm: f64,
     pub worst_subject: String,
+    /// Of the subjects whose report gives this measurement's `±` (`uncertainty_mm`):
+    /// how many, how many errors lie within it, and its median (mm).
+    pub with_pm: usize,
+    pub within_pm: usize,
+    pub median_pm_mm: Option<f64>,
 }
 
 /// Rows and their summary.
@@ -397,21 +408,29 @@ pub struct EvalTable {
 impl EvalTable {
     /// Per-measurement MAE, bias and worst error (subjects whose report has it).
     pub fn summary(&self) -> Vec<MeasurementSummary> {
-        let mut by: BTreeMap<String, Vec<(f64, &str)>> = BTreeMap::new();
+        let mut by: BTreeMap<String, Vec<(f64, &str, Option<f64>)>> = BTreeMap::new();
         for r in &self.rows {
             for m in &r.measurements {
                 if let Some(e) = m.error_mm {
-                    by.entry(m.name.clone()).or_default().push((e, &r.subject));
+                    by.entry(m.name.clone())
+                        .or_default()
+                        .push((e, &r.subject, m.pm_mm));
                 }
             }
         }
         by.into_iter()
             .map(|(name, es)| {
+                let mut pms: Vec<f64> = es.iter().filter_map(|e| e.2).collect();
+                pms.sort_by(|a, b| a.total_cmp(b));
+                let within_pm = es
+                    .iter()
+                    .filter(|e| e.2.is_some_and(|pm| e.0.abs() <= pm))
+                    .count();
                 let n = es.len() as f64;
                 let worst = es
                     .iter()
                     .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
-                    .copied()
+                    .map(|e| (e.0, e.1))
                     .unwrap_or((0.0, ""));
                 MeasurementSummary {
                     name,
@@ -420,6 +439,9 @@ impl EvalTable {
                     mean_bias_mm: es.iter().map(|e| e.0).sum::<f64>() / n,
                     worst_error_mm: worst.0,
                     worst_subject: worst.1.to_string(),
+                    with_pm: pms.len(),
+                    within_pm,
+                    median_pm_mm: (!pms.is_empty()).then(|| pms[pms.len() / 2]),
                 }
             })
             .collect()
@@ -522,10 +544,14 @@ impl EvalTable {
                 iou("side")
             ));
         }
-        s.push_str("\nper measurement        subjects   MAE mm  bias mm  worst mm  (subject)\n");
+        s.push_str("\nper measurement        subjects   MAE mm  bias mm  worst mm  median ± mm  within ±  (worst subject)\n");
         for m in self.summary() {
+            let (pm, within) = match m.median_pm_mm {
+                Some(pm) => (format!("{pm:.1}"), format!("{}/{}", m.within_pm, m.with_pm)),
+                None => ("-".into(), "-".into()),
+            };
             s.push_str(&format!(
-                "{:<22} {:>8} {:>8.1} {:>8.1} {:>9.1}  ({})\n",
+                "{:<22} {:>8} {:>8.1} {:>8.1} {:>9.1} {pm:>12} {within:>9}  ({})\n",
                 m.name,
                 m.subjects,
                 m.mean_abs_error_mm,
@@ -689,18 +715,38 @@ pub fn sets_side_by_side(sets: &[(String, EvalTable)]) -> String {
         s.push_str(&format!(" {:>COL$}", clip(n, COL)));
     }
     s.push('\n');
-    for name in names {
+    for name in &names {
         s.push_str(&format!("{:<20}", clip(name, 20)));
         for sum in &summaries {
             let cell = sum
                 .iter()
-                .find(|m| &m.name == name)
+                .find(|m| &m.name == *name)
                 .map_or("-".into(), |m| {
                     format!(
                         "{:.1} / {:+.1} / {:+.1}",
                         m.mean_abs_error_mm, m.mean_bias_mm, m.worst_error_mm
                     )
                 });
+            s.push_str(&format!(" {cell:>COL$}"));
+        }
+        s.push('\n');
+    }
+    s.push_str(&format!("\n{:<20}", "within ± / median ±"));
+    for (n, _) in sets {
+        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
+    }
+    s.push('\n');
+    for name in names.iter().filter(|n| n.as_str() != "stature") {
+        s.push_str(&format!("{:<20}", clip(name, 20)));
+        for sum in &summaries {
+            let cell = sum
+                .iter()
+                .find(|m| &m.name == *name)
+                .and_then(|m| {
+                    m.median_pm_mm
+                        .map(|pm| format!("{}/{} / {pm:.1}", m.within_pm, m.with_pm))
+                })
+                .unwrap_or_else(|| "-".into());
             s.push_str(&format!(" {cell:>COL$}"));
         }
         s.push('\n');
@@ -834,6 +880,7 @@ mod tests {
                     true_mm: 900.0,
                     fitted_mm: Some(900.0 + e),
                     error_mm: Some(e),
+                    pm_mm: Some(8.0),
                 })
                 .collect(),
             surface: None,
@@ -873,6 +920,16 @@ mod tests {
         assert!(
             hip.contains("4.0 / +2.0 / +6.0") && hip.trim_end().ends_with('-'),
             "{hip}"
+        );
+        // Each chest row is given ±8: 4 mm is within it, -10 mm is not.
+        let cover = t
+            .lines()
+            .filter(|l| l.starts_with("chest_girth"))
+            .nth(1)
+            .expect("cover row");
+        assert!(
+            cover.contains("1/2 / 8.0") && cover.contains("0/1 / 8.0"),
+            "{cover}"
         );
         let fitted = t
             .lines()

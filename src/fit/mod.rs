@@ -388,6 +388,19 @@ impl Fitter {
         ))
     }
 
+    /// What the two views showed of `region` within `half_window_m` of height `y` at the
+    /// last fit (see [`sections::SectionPlan::evidence_at`]); None without a subject or
+    /// dense section targets.
+    pub fn level_evidence(
+        &self,
+        region: sections::Region,
+        y: f64,
+        half_window_m: f64,
+    ) -> Option<sections::LevelEvidence> {
+        let plan = self.subject.as_ref()?.plan.as_ref()?;
+        plan.evidence_at(&self.section_scratch, region, y, half_window_m)
+    }
+
     /// The current avatar as a mesh (template triangles).
     pub fn avatar(&self) -> Option<TriMesh> {
         let s = self.subject.as_ref()?;

@@ -102,10 +102,66 @@ struct Delta {
     mid: f64,
 }
 
+/// What the views showed of one entry of a chain, for the measurements' uncertainty:
+/// per side (the chain's high then low status), the edge's residual against the fitted
+/// map (metres, the observed edge minus where the map puts the candidate's rim), or NaN
+/// where the view showed no edge of the part (occluded, trimmed as another part's, or
+/// outside the mask).
+#[derive(Debug, Clone, Copy)]
+pub struct EntryEvidence {
+    pub y: f64,
+    pub residual: [f64; 2],
+}
+
+/// The body region a measurement is taken on, for [`SectionPlan::evidence_at`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Region {
+    Torso,
+    LeftThigh,
+    RightThigh,
+}
+
+/// How well one view showed one extent (width or depth) of a region about a height.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct AxisEvidence {
+    /// Fraction of the region's edges (both sides, entries within the window) that the
+    /// view showed, 0..1.
+    pub seen: f64,
+    /// Root mean square residual of the edges shown, metres (per side).
+    pub rms_m: f64,
+    /// Over the same edges, the mean of `min(1, gap / UNSEEN_GAP_FULL_M)^2` for those the
+    /// view did not show (0 for those it did), where `gap` is the height to the nearest
+    /// edge it showed on the same side: an edge between shown neighbours is interpolated
+    /// from them, one far from any is the candidate's guess.
+    pub unseen_share: f64,
+}
+
+/// Height gap to the nearest shown edge beyond which an unshown edge is known no better
+/// than the candidate body knows it, metres (about the height of a hand).
+pub const UNSEEN_GAP_FULL_M: f64 = 0.10;
+
+/// What both views showed of a region about a height.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LevelEvidence {
+    /// The front view: the region's x extent.
+    pub width: AxisEvidence,
+    /// The side view: the region's z extent.
+    pub depth: AxisEvidence,
+}
+
+/// Chain indices in [`SectionPlan::new`]'s order.
+const CHAIN_TORSO_X: usize = 0;
+const CHAIN_TORSO_Z: usize = 1;
+const CHAIN_LEFT_LEG_X: usize = 2;
+const CHAIN_RIGHT_LEG_X: usize = 3;
+const CHAIN_LEGS_Z: usize = 4;
+
 /// Scratch of [`SectionPlan::targets`].
 #[derive(Debug, Clone, Default)]
 pub struct SectionScratch {
     deltas: Vec<Vec<Delta>>,
+    /// Per chain, per entry: what the views showed at the last call.
+    evidence: Vec<Vec<EntryEvidence>>,
     raw_scale: Vec<Option<f64>>,
     trend_y: Vec<f64>,
     trend_d: Vec<f64>,
@@ -267,10 +323,13 @@ impl SectionPlan {
         out.clear();
         out.resize(positions.len(), None);
         scratch.deltas.resize(self.chains.len(), Vec::new());
+        scratch.evidence.resize(self.chains.len(), Vec::new());
         for (ci, chain) in self.chains.iter().enumerate() {
             let mut ds = std::mem::take(&mut scratch.deltas[ci]);
-            self.chain_deltas(chain, positions, set, targets, scratch, &mut ds);
+            let mut ev = std::mem::take(&mut scratch.evidence[ci]);
+            self.chain_deltas(chain, positions, set, targets, scratch, &mut ds, &mut ev);
             scratch.deltas[ci] = ds;
+            scratch.evidence[ci] = ev;
         }
         for (s, members) in set.slice_members.iter().enumerate() {
             let [sx, sz] = self.slot[s];
@@ -327,7 +386,62 @@ impl SectionPlan {
         }
     }
 
-    /// Fits the chain's maps into `out`, one [`Delta`] per entry.
+    /// What the views showed of `region` within `half_window_m` of height `y`, at the
+    /// last call of [`Self::targets`] with `scratch`; None before one, or where the region
+    /// has no entry within the window.
+    pub fn evidence_at(
+        &self,
+        scratch: &SectionScratch,
+        region: Region,
+        y: f64,
+        half_window_m: f64,
+    ) -> Option<LevelEvidence> {
+        let (cx, cz) = match region {
+            Region::Torso => (CHAIN_TORSO_X, CHAIN_TORSO_Z),
+            Region::LeftThigh => (CHAIN_LEFT_LEG_X, CHAIN_LEGS_Z),
+            Region::RightThigh => (CHAIN_RIGHT_LEG_X, CHAIN_LEGS_Z),
+        };
+        let axis = |c: usize| -> Option<AxisEvidence> {
+            let entries = scratch.evidence.get(c)?;
+            let (mut n, mut seen, mut ss, mut unseen) = (0usize, 0usize, 0.0, 0.0);
+            for e in entries {
+                if (e.y - y).abs() > half_window_m {
+                    continue;
+                }
+                for (side, r) in e.residual.into_iter().enumerate() {
+                    n += 1;
+                    if r.is_finite() {
+                        seen += 1;
+                        ss += r * r;
+                    } else {
+                        let gap = entries
+                            .iter()
+                            .filter(|o| o.residual[side].is_finite())
+                            .map(|o| (o.y - e.y).abs())
+                            .fold(f64::INFINITY, f64::min);
+                        unseen += (gap / UNSEEN_GAP_FULL_M).min(1.0).powi(2);
+                    }
+                }
+            }
+            (n > 0).then(|| AxisEvidence {
+                seen: seen as f64 / n as f64,
+                rms_m: if seen > 0 {
+                    (ss / seen as f64).sqrt()
+                } else {
+                    0.0
+                },
+                unseen_share: unseen / n as f64,
+            })
+        };
+        Some(LevelEvidence {
+            width: axis(cx)?,
+            depth: axis(cz)?,
+        })
+    }
+
+    /// Fits the chain's maps into `out`, one [`Delta`] per entry, and records in
+    /// `evidence` what the views showed of each entry.
+    #[allow(clippy::too_many_arguments)]
     fn chain_deltas(
         &self,
         chain: &Chain,
@@ -336,6 +450,7 @@ impl SectionPlan {
         targets: &[Option<DVec3>],
         scratch: &mut SectionScratch,
         out: &mut Vec<Delta>,
+        evidence: &mut Vec<EntryEvidence>,
     ) {
         let m = chain.entries.len();
         let (hi_status, lo_status) = chain.axis.statuses();
@@ -451,13 +566,20 @@ impl SectionPlan {
         fill(&mut smooth_shift, 0.0);
         // delta(x) = shift + (s - 1)(x - mid) = alpha + beta x.
         out.clear();
+        evidence.clear();
         for e in 0..m {
             let beta = scratch.scales[e] - 1.0;
-            out.push(Delta {
+            let d = Delta {
                 alpha: smooth_shift[e] - beta * mids[e],
                 beta,
                 y: scratch.centres[e],
                 mid: mids[e],
+            };
+            out.push(d);
+            evidence.push(EntryEvidence {
+                y: d.y,
+                residual: constraints[e]
+                    .map(|c| c.map_or(f64::NAN, |(p, t)| t - (p + d.alpha + d.beta * p))),
             });
         }
     }

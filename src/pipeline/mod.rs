@@ -81,6 +81,18 @@ pub struct MeasurementValue {
     pub value_mm: f64,
     /// Spread of the recent values (mm); small means settled.
     pub stability_mm: f64,
+    /// How sure the station is: the value is within `± uncertainty_mm` of the truth
+    /// (two standard deviations, `station::uncertainty`); infinite when unknown.
+    #[serde(default = "unknown_uncertainty")]
+    pub uncertainty_mm: f64,
+    /// The uncertainty exceeds the measurement's ANSUR II observer tolerance: the station
+    /// did not see this measurement well enough to vouch for it.
+    #[serde(default)]
+    pub uncertain: bool,
+}
+
+fn unknown_uncertainty() -> f64 {
+    f64::INFINITY
 }
 
 /// Overlay data of one camera view, in that camera's (distorted) pixels.

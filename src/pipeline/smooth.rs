@@ -50,6 +50,16 @@ impl SmoothedValue {
         let hi = self.recent.iter().copied().fold(f64::MIN, f64::max);
         hi - lo
     }
+    /// Standard deviation of the window's values (mm); 0 with fewer than two.
+    pub fn std_dev(&self) -> f64 {
+        let n = self.recent.len();
+        if n < 2 {
+            return 0.0;
+        }
+        let mean = self.recent.iter().sum::<f64>() / n as f64;
+        let ss: f64 = self.recent.iter().map(|v| (v - mean) * (v - mean)).sum();
+        (ss / (n - 1) as f64).sqrt()
+    }
     /// Largest change between consecutive values in the window (mm).
     pub fn max_step(&self) -> f64 {
         self.recent

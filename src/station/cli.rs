@@ -215,10 +215,18 @@ pub fn run_offline(
     }
     let mut meas = serde_json::Map::new();
     let mut stab = serde_json::Map::new();
+    let mut unc = serde_json::Map::new();
+    let mut uncertain = Vec::new();
     for mv in proc_.measurements() {
         meas.insert(mv.name.clone(), round1(mv.value_mm).into());
         if mv.stability_mm.is_finite() {
             stab.insert(mv.name.clone(), round1(mv.stability_mm).into());
+        }
+        if mv.uncertainty_mm.is_finite() {
+            unc.insert(mv.name.clone(), round1(mv.uncertainty_mm).into());
+        }
+        if mv.uncertain {
+            uncertain.push(mv.name.clone());
         }
     }
     let steps: serde_json::Map<String, serde_json::Value> = proc_
@@ -252,6 +260,8 @@ pub fn run_offline(
         "frames": proc_.counts,
         "timings_ms": timings.to_json(),
         "stability_mm": stab,
+        "uncertainty_mm": unc,
+        "uncertain": uncertain,
         "max_frame_step_mm": steps,
         "settled_step_mm": settled_steps,
         "landmarks": landmarks,

@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod output;
 pub mod pose_change;
+pub mod uncertainty;
 
 use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
@@ -81,6 +82,9 @@ pub struct StationProcessor {
     fitter: Fitter,
     learned: usize,
     smoothed: Vec<SmoothedValue>,
+    /// Per measurement, the per-frame standard deviations from what the views showed
+    /// ([`uncertainty::frame_sigma_mm`]), over the same window as the values.
+    sigmas: Vec<SmoothedValue>,
     pub counts: FrameCounts,
     last_avatar: Option<Arc<TriMesh>>,
     pub last_measurements: Option<Measurements>,
@@ -111,6 +115,7 @@ impl StationProcessor {
             fitter,
             learned: 0,
             smoothed: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
+            sigmas: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
             counts: FrameCounts::default(),
             last_avatar: None,
             last_measurements: None,
@@ -131,12 +136,17 @@ impl StationProcessor {
     pub fn measurements(&self) -> Vec<MeasurementValue> {
         MEASUREMENT_KEYS
             .iter()
-            .zip(&self.smoothed)
-            .filter_map(|(k, s)| {
+            .zip(self.smoothed.iter().zip(&self.sigmas))
+            .filter_map(|(k, (s, sigma))| {
+                let pm = sigma.value().map_or(f64::INFINITY, |f| {
+                    uncertainty::reported_pm_mm(f, s.std_dev())
+                });
                 Some(MeasurementValue {
                     name: k.to_string(),
                     value_mm: s.value()?,
                     stability_mm: s.stability(),
+                    uncertainty_mm: pm,
+                    uncertain: uncertainty::tolerance_mm(k).is_none_or(|t| !(pm <= t)),
                 })
             })
             .collect()
@@ -253,7 +263,7 @@ impl StationProcessor {
         let mut notes = Vec::new();
         if self.pose.observe(&result.landmarks.points) && self.fitter.has_subject() {
             self.fitter.reset();
-            for s in &mut self.smoothed {
+            for s in self.smoothed.iter_mut().chain(&mut self.sigmas) {
                 s.clear();
             }
             self.landmark_windows.clear();
@@ -281,9 +291,23 @@ impl StationProcessor {
         match crate::measure::measure(&avatar) {
             Ok(m) => {
                 let map = m.to_report_map();
-                for (k, s) in MEASUREMENT_KEYS.iter().zip(self.smoothed.iter_mut()) {
+                for (k, (s, sigma)) in MEASUREMENT_KEYS
+                    .iter()
+                    .zip(self.smoothed.iter_mut().zip(self.sigmas.iter_mut()))
+                {
                     if let Some(v) = map.get(*k).and_then(|v| v.as_f64()) {
                         s.push(v);
+                        let evidence = uncertainty::level_of(k, &m).and_then(|(region, y)| {
+                            self.fitter
+                                .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
+                        });
+                        if crate::fit::debug_enabled() {
+                            eprintln!(
+                                "evidence {k}: {evidence:?} -> {:.1}",
+                                uncertainty::frame_sigma_mm(k, v, evidence)
+                            );
+                        }
+                        sigma.push(uncertainty::frame_sigma_mm(k, v, evidence));
                     }
                 }
                 self.last_measurements = Some(m);
@@ -359,7 +383,7 @@ impl FrameProcessor for StationProcessor {
 
     fn reset_subject(&mut self) {
         self.fitter.reset();
-        for s in &mut self.smoothed {
+        for s in self.smoothed.iter_mut().chain(&mut self.sigmas) {
             s.clear();
         }
         self.last_avatar = None;

@@ -1,0 +1,190 @@
+//! How sure the station is of each measurement: an uncertainty in millimetres from what
+//! the cameras actually showed (issue 19, item 5).
+//!
+//! A girth is taken around a section whose width the front view shows and whose depth the
+//! side view shows; what lies between the extremes comes from the candidate body. So the
+//! error of a girth has three parts, each estimated per frame and then over the window
+//! the shown value is smoothed on ([`crate::pipeline::smooth`]):
+//! - **the extents**: at the measurement's level (the edges within [`LEVEL_HALF_WINDOW_M`]
+//!   of it), each side of each extent was either seen (an edge of that part in that view:
+//!   its error is the residual between the edge and the fitted section, per side) or not
+//!   (hidden behind an arm or a hand, or the other leg, or outside the mask: it is
+//!   interpolated from the nearest edges shown, and known the worse the further they
+//!   are, up to what the rest of the body tells about that extent, [`Prior`], from real
+//!   people; see [`crate::fit::sections::AxisEvidence::unseen_share`]).
+//!   A girth moves by about pi/2 times a change of either extent (an ellipse's perimeter
+//!   is about pi (a + b)), so `sigma_extents^2 = (pi/2)^2 (sigma_w^2 + sigma_d^2)`;
+//! - **the shape between the extents**: a fraction [`SHAPE_OF_GIRTH`] of the girth;
+//! - **stability**: the standard deviation of the per-frame values in the window.
+//!
+//! The reported value is `±2 sigma` (about 95 % if the errors were normal). A measurement
+//! whose `±` exceeds its ANSUR II observer tolerance ([`tolerance_mm`]) is flagged as
+//! uncertain: the station did not see it well enough to vouch for it.
+//!
+//! Units: metres for heights and residuals, millimetres for what is reported.
+
+use crate::fit::sections::{AxisEvidence, LevelEvidence, Region};
+use crate::measure::Measurements;
+
+/// Edges within this height of a measurement's level count for it, metres (a tape is a
+/// few centimetres wide, and one entry of a section chain is about a centimetre).
+pub const LEVEL_HALF_WINDOW_M: f64 = 0.02;
+
+/// The girth's share that the section's shape between its extents may be off by
+/// (standard deviation, fraction of the girth).
+pub const SHAPE_OF_GIRTH: f64 = 0.004;
+
+/// Standard deviation of the stature's own error, mm: the head top and the soles are
+/// found on the silhouettes to about this (the landmark evaluation's mean |error| is
+/// 0.7-1.2 mm, its worst 2-5 mm).
+pub const STATURE_SIGMA_MM: f64 = 1.5;
+
+/// How far an extent can be from what the rest of the body says, mm (standard
+/// deviation): the spread of real people's breadth (depth) about its regression on
+/// depth (breadth), stature, weight and sex over ANSUR II's 6,068 adults, printed by
+/// `python3 tools/ansur_priors.py`. An extent the view did not show is known this well.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Prior {
+    pub width_mm: f64,
+    pub depth_mm: f64,
+}
+
+/// [`Prior`] of a girth's section (chest, waist, hip: ANSUR II's chest, waist and
+/// buttock breadths and depths; the thigh, of which ANSUR II has no breadth or depth,
+/// takes its girth's spread (17.9 mm) shared between its two extents, 17.9 / (pi/2) /
+/// sqrt 2 = 8 mm each).
+pub fn prior(key: &str) -> Option<Prior> {
+    let (w, d) = match key {
+        "chest_girth" => (13.1, 13.6),
+        "waist_girth" => (15.1, 15.0),
+        "hip_girth" => (13.8, 11.3),
+        "thigh_girth_left" | "thigh_girth_right" => (8.0, 8.0),
+        _ => return None,
+    };
+    Some(Prior {
+        width_mm: w,
+        depth_mm: d,
+    })
+}
+
+/// ANSUR II's observer tolerance of a measurement, mm (the spread between two trained
+/// measurers: the accuracy a station must reach).
+pub fn tolerance_mm(key: &str) -> Option<f64> {
+    Some(match key {
+        "stature" => 6.0,
+        "chest_girth" => 14.0,
+        "waist_girth" => 12.0,
+        "hip_girth" => 12.0,
+        "thigh_girth_left" | "thigh_girth_right" => 6.0,
+        _ => return None,
+    })
+}
+
+/// The level and region a measurement is taken at on a measured avatar.
+pub fn level_of(key: &str, m: &Measurements) -> Option<(Region, f64)> {
+    let l = &m.levels;
+    Some(match key {
+        "chest_girth" => (Region::Torso, l.chest_m),
+        "waist_girth" => (Region::Torso, l.waist_m),
+        "hip_girth" => (Region::Torso, l.hip_m),
+        "thigh_girth_left" => (Region::LeftThigh, l.thigh_m),
+        "thigh_girth_right" => (Region::RightThigh, l.thigh_m),
+        _ => return None,
+    })
+}
+
+/// Variance (mm^2) of one extent from what its view showed: per side, the edge's residual
+/// where seen, where not a share of half the prior's variance that grows with the gap to
+/// the nearest edge shown.
+fn extent_variance(e: AxisEvidence, prior_mm: f64) -> f64 {
+    let seen = e.seen.clamp(0.0, 1.0);
+    let rms_mm = e.rms_m * 1000.0;
+    2.0 * (seen * rms_mm * rms_mm + e.unseen_share.clamp(0.0, 1.0) * 0.5 * prior_mm * prior_mm)
+}
+
+/// The standard deviation (mm) of a girth of `girth_mm` from one frame's evidence at its
+/// level; without evidence (no dense sections, level outside every chain) both extents
+/// count as unseen.
+pub fn frame_sigma_mm(key: &str, girth_mm: f64, evidence: Option<LevelEvidence>) -> f64 {
+    let Some(p) = prior(key) else {
+        return STATURE_SIGMA_MM;
+    };
+    let (vw, vd) = match evidence {
+        Some(e) => (
+            extent_variance(e.width, p.width_mm),
+            extent_variance(e.depth, p.depth_mm),
+        ),
+        None => (p.width_mm * p.width_mm, p.depth_mm * p.depth_mm),
+    };
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    let shape = SHAPE_OF_GIRTH * girth_mm;
+    (half_pi * half_pi * (vw + vd) + shape * shape).sqrt()
+}
+
+/// The reported `±` (mm, two standard deviations) from the window's per-frame sigmas
+/// (their trimmed mean, `sigma_frame_mm`) and the spread of its values (`values_sd_mm`).
+pub fn reported_pm_mm(sigma_frame_mm: f64, values_sd_mm: f64) -> f64 {
+    2.0 * (sigma_frame_mm * sigma_frame_mm + values_sd_mm * values_sd_mm).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Evidence with the given shown fractions, residual, and unshown edges far from any
+    /// shown one.
+    fn ev(seen_w: f64, seen_d: f64, rms_mm: f64) -> LevelEvidence {
+        let axis = |seen: f64| AxisEvidence {
+            seen,
+            rms_m: rms_mm / 1000.0,
+            unseen_share: 1.0 - seen,
+        };
+        LevelEvidence {
+            width: axis(seen_w),
+            depth: axis(seen_d),
+        }
+    }
+
+    #[test]
+    fn an_unseen_edge_between_close_neighbours_costs_little() {
+        let mut near = ev(1.0, 0.5, 1.0);
+        near.depth.unseen_share = 0.5 * 0.1f64.powi(2);
+        let far = ev(1.0, 0.5, 1.0);
+        let (n, f) = (
+            frame_sigma_mm("hip_girth", 950.0, Some(near)),
+            frame_sigma_mm("hip_girth", 950.0, Some(far)),
+        );
+        assert!(n < 6.0 && f > 12.0, "{n} {f}");
+    }
+
+    #[test]
+    fn a_hidden_depth_widens_the_girth_by_the_prior() {
+        let seen = frame_sigma_mm("waist_girth", 800.0, Some(ev(1.0, 1.0, 1.0)));
+        let hidden = frame_sigma_mm("waist_girth", 800.0, Some(ev(1.0, 0.0, 1.0)));
+        // Both extents seen to 1 mm a side: shape (3.2 mm) and 1.57 * 2 mm.
+        assert!((seen - (3.2f64.powi(2) + (1.5708 * 2.0f64).powi(2)).sqrt()).abs() < 0.05);
+        // The depth unseen: its prior (15 mm) takes over, so the waist's sigma passes 20 mm.
+        assert!(hidden > 20.0 && hidden < 26.0, "{hidden}");
+        // No evidence at all is wider still.
+        assert!(frame_sigma_mm("waist_girth", 800.0, None) > hidden);
+    }
+
+    #[test]
+    fn residuals_widen_and_stability_adds() {
+        let tight = frame_sigma_mm("chest_girth", 950.0, Some(ev(1.0, 1.0, 0.5)));
+        let loose = frame_sigma_mm("chest_girth", 950.0, Some(ev(1.0, 1.0, 4.0)));
+        assert!(loose > 2.0 * tight, "{tight} {loose}");
+        assert!((reported_pm_mm(3.0, 4.0) - 10.0).abs() < 1e-9);
+        assert_eq!(frame_sigma_mm("stature", 1700.0, None), STATURE_SIGMA_MM);
+    }
+
+    #[test]
+    fn every_reported_girth_has_a_prior_a_tolerance_and_a_level() {
+        for key in crate::station::MEASUREMENT_KEYS {
+            assert!(tolerance_mm(key).is_some(), "{key}");
+            if key != "stature" {
+                assert!(prior(key).is_some(), "{key}");
+            }
+        }
+    }
+}

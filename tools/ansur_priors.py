@@ -1,0 +1,55 @@
+#!/usr/bin/env python3
+"""Spreads of real bodies that the station's uncertainty model uses (fit/uncertainty.rs).
+
+Reads ANSUR II (../shared/data/ansur2, public domain) and prints, per girth, the residual
+standard deviation (mm) of
+  shape: circumference regressed on breadth and depth (and their product): how far a
+         girth can be from what its two extents say, i.e. the section shape two views
+         cannot see;
+  depth: depth regressed on breadth, stature, weight and sex: how far the depth can be
+         from what the rest of the body says, i.e. a depth the side view did not show;
+  breadth: the same for the breadth (an extent the front view did not show).
+Usage: python3 tools/ansur_priors.py [ANSUR_DIR]   (numpy only)
+"""
+import csv, os, sys
+import numpy as np
+
+here = os.path.dirname(os.path.abspath(__file__))
+root = sys.argv[1] if len(sys.argv) > 1 else os.path.join(here, "..", "..", "shared", "data", "ansur2")
+
+def rows(name, enc):
+    with open(os.path.join(root, name), encoding=enc, newline="") as f:
+        r = csv.reader(f)
+        head = [h.lower() for h in next(r)]
+        for line in r:
+            yield dict(zip(head, line))
+
+data = [(d, 1.0) for d in rows("ANSUR_II_MALE_Public.csv", "latin-1")] + \
+       [(d, 0.0) for d in rows("ANSUR_II_FEMALE_Public.csv", "utf-8")]
+
+def col(name):
+    return np.array([float(d[name]) for d, _ in data])
+
+sex = np.array([s for _, s in data])
+stature, weight = col("stature"), col("weightkg") / 10.0
+
+def resid_sd(y, *xs):
+    a = np.column_stack([np.ones_like(y), *xs])
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    r = y - a @ coef
+    return float(np.sqrt(np.mean(r * r)))
+
+print(f"ANSUR II: {len(data)} subjects")
+print(f"{'girth':8} {'shape sd':>9} {'depth sd':>9} {'breadth sd':>11}   (mm)")
+for name, circ, breadth, depth in [
+    ("chest", "chestcircumference", "chestbreadth", "chestdepth"),
+    ("waist", "waistcircumference", "waistbreadth", "waistdepth"),
+    ("hip", "buttockcircumference", "hipbreadth", "buttockdepth"),
+]:
+    c, b, d = col(circ), col(breadth), col(depth)
+    shape = resid_sd(c, b, d, b * d, sex)
+    dsd = resid_sd(d, b, stature, weight, sex)
+    bsd = resid_sd(b, d, stature, weight, sex)
+    print(f"{name:8} {shape:9.1f} {dsd:9.1f} {bsd:11.1f}")
+t = col("thighcircumference")
+print(f"{'thigh':8} {resid_sd(t, stature, weight, sex, col('buttockcircumference')):9.1f}   (girth from stature, weight, sex and buttock girth: no thigh breadth or depth in ANSUR)")
