@@ -87,12 +87,10 @@ fn survey() {
         let truth = load_truth(&truth_dir(&rec)).expect("truth");
         let calib = StationCalibration::load(&rec.join("station.yaml")).expect("calib");
         let crotch = DVec3::from_array(truth.landmarks["crotch"]);
-        let obs = Observation {
-            stature_m: truth.measurements_mm["stature"] / 1000.0,
-            torso_point: crotch + DVec3::new(0.0, 0.08, 0.0),
-            arm_angles: None,
-            leg_angles: None,
-        };
+        let obs = Observation::new(
+            truth.measurements_mm["stature"] / 1000.0,
+            crotch + DVec3::new(0.0, 0.08, 0.0),
+        );
         fitter.reset();
         let mut times = Vec::new();
         let mut pos = Vec::new();

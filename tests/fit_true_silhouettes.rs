@@ -33,13 +33,10 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
     let (fw, fh, fm) = load_mask(&truth_dir(&rec).join("masks/front/000010.png"));
     let (sw, sh, sm) = load_mask(&truth_dir(&rec).join("masks/side/000010.png"));
     let crotch = DVec3::from_array(truth.landmarks["crotch"]);
-    let obs = Observation {
-        stature_m: truth.measurements_mm["stature"] / 1000.0,
-
-        torso_point: crotch + DVec3::new(0.0, 0.08, 0.0),
-        arm_angles: None,
-        leg_angles: None,
-    };
+    let obs = Observation::new(
+        truth.measurements_mm["stature"] / 1000.0,
+        crotch + DVec3::new(0.0, 0.08, 0.0),
+    );
     let opts = FitOptions {
         variant,
         ..FitOptions::default()

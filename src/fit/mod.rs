@@ -104,6 +104,26 @@ pub struct Observation {
     pub arm_angles: Option<(f64, f64)>,
     /// Leg spread seen in the front view: angle of hip -> ankle from straight down.
     pub leg_angles: Option<(f64, f64)>,
+    /// Where the arms and hands are in the side view (forearm, hand: from the person
+    /// model's keypoints), as capsules in the station's (y, z) plane: an edge of the side
+    /// silhouette inside one may be the limb's, not the trunk's or the thigh's, and is
+    /// not taken as theirs. All None when unknown (the trunk's own smooth trend then
+    /// tells occluders apart, see [`sections`]).
+    pub side_occluders: [Option<sections::SideOccluder>; sections::MAX_SIDE_OCCLUDERS],
+}
+
+impl Observation {
+    /// An observation of a subject of `stature_m` whose hips are about `torso_point`,
+    /// with nothing else known.
+    pub fn new(stature_m: f64, torso_point: DVec3) -> Observation {
+        Observation {
+            stature_m,
+            torso_point,
+            arm_angles: None,
+            leg_angles: None,
+            side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
+        }
+    }
 }
 
 /// Errors of the fit.
@@ -161,6 +181,8 @@ pub struct Fitter {
     targets: Vec<Option<DVec3>>,
     target_buf: Vec<DVec3>,
     section_scratch: sections::SectionScratch,
+    /// The side view's limb capsules of the current call (see [`Observation`]).
+    side_occluders: [Option<sections::SideOccluder>; sections::MAX_SIDE_OCCLUDERS],
     vertex_targets: Vec<Option<DVec3>>,
     /// Rasterised silhouette of the candidate (first fit only).
     raster: Vec<u8>,
@@ -199,6 +221,7 @@ impl Fitter {
             targets: Vec::new(),
             target_buf: Vec::new(),
             section_scratch: Default::default(),
+            side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
             vertex_targets: Vec::new(),
             raster: Vec::new(),
         })
@@ -237,6 +260,7 @@ impl Fitter {
         obs: &Observation,
     ) -> Result<(&[DVec3], FitStats), FitError> {
         let views = [(&calib.front, front), (&calib.side, side)];
+        self.side_occluders = obs.side_occluders;
         let warm = self.subject.is_some();
         let mut stats = FitStats {
             warm,
@@ -339,6 +363,7 @@ impl Fitter {
                     &s.rest.positions,
                     &s.controls,
                     &self.targets,
+                    &self.side_occluders,
                     &mut self.section_scratch,
                     &mut self.vertex_targets,
                 );

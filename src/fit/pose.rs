@@ -308,10 +308,9 @@ mod tests {
             ),
         );
         let obs = Observation {
-            stature_m: t.info.stature_m,
-            torso_point: DVec3::ZERO,
             arm_angles: Some((arms.0 + 0.15, arms.1 + 0.15)),
             leg_angles: Some((legs.0 + 0.07, legs.1 + 0.07)),
+            ..Observation::new(t.info.stature_m, DVec3::ZERO)
         };
         synchronise(&mut body, &labels, &joints, 1.0, &obs);
         let low = |m: &TriMesh| m.positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);

@@ -149,6 +149,43 @@ pub struct LevelEvidence {
     pub depth: AxisEvidence,
 }
 
+/// Most limb capsules an observation carries for the side view (forearm and hand of
+/// each arm, and a spare pair).
+pub const MAX_SIDE_OCCLUDERS: usize = 6;
+
+/// A limb segment seen in the side view (a forearm, a hand), as a capsule in the station's
+/// (y, z) plane: the segment from `a` to `b` (each `(y, z)`, metres) widened by `radius`.
+/// The side camera looks along x, so an edge of the side silhouette at height y and depth
+/// z inside the capsule may be the limb's.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SideOccluder {
+    pub a: glam::DVec2,
+    pub b: glam::DVec2,
+    pub radius: f64,
+}
+
+impl SideOccluder {
+    /// Whether the point `(y, z)` lies within the capsule widened by `margin`.
+    pub fn covers(&self, y: f64, z: f64, margin: f64) -> bool {
+        let p = glam::DVec2::new(y, z);
+        let ab = self.b - self.a;
+        let t = if ab.length_squared() > 1e-12 {
+            ((p - self.a).dot(ab) / ab.length_squared()).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (self.a + ab * t).distance(p) <= self.radius + margin
+    }
+}
+
+/// An edge of the side silhouette within this of a limb capsule is taken as the limb's,
+/// metres (the capsule is drawn from keypoints, which sit inside the limb).
+const OCCLUDER_MARGIN_M: f64 = 0.015;
+/// With the limbs of the side view known, the smooth-trend test of [`outward_inliers`]
+/// only guards against gross mistakes (a passer-by, a bag): an edge within this of the
+/// trend is the part's own, however far the candidate's shape is from it, metres.
+const KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M: f64 = 0.05;
+
 /// Chain indices in [`SectionPlan::new`]'s order.
 const CHAIN_TORSO_X: usize = 0;
 const CHAIN_TORSO_Z: usize = 1;
@@ -317,6 +354,7 @@ impl SectionPlan {
         positions: &[DVec3],
         set: &ControlSet,
         targets: &[Option<DVec3>],
+        occluders: &[Option<SideOccluder>],
         scratch: &mut SectionScratch,
         out: &mut Vec<Option<DVec3>>,
     ) {
@@ -327,7 +365,9 @@ impl SectionPlan {
         for (ci, chain) in self.chains.iter().enumerate() {
             let mut ds = std::mem::take(&mut scratch.deltas[ci]);
             let mut ev = std::mem::take(&mut scratch.evidence[ci]);
-            self.chain_deltas(chain, positions, set, targets, scratch, &mut ds, &mut ev);
+            self.chain_deltas(
+                chain, positions, set, targets, occluders, scratch, &mut ds, &mut ev,
+            );
             scratch.deltas[ci] = ds;
             scratch.evidence[ci] = ev;
         }
@@ -448,6 +488,7 @@ impl SectionPlan {
         positions: &[DVec3],
         set: &ControlSet,
         targets: &[Option<DVec3>],
+        occluders: &[Option<SideOccluder>],
         scratch: &mut SectionScratch,
         out: &mut Vec<Delta>,
         evidence: &mut Vec<EntryEvidence>,
@@ -510,6 +551,24 @@ impl SectionPlan {
             mids.push(mid);
             constraints.push([c_hi, c_lo]);
         }
+        // In the side view, an edge inside a known limb's capsule may be the limb's: it is
+        // not the part's.
+        let known = chain.axis == Axis::Z && occluders.iter().any(Option::is_some);
+        if known {
+            for (e, c) in constraints.iter_mut().enumerate() {
+                let y = scratch.centres[e];
+                for side in c.iter_mut() {
+                    if side.is_some_and(|(_, t)| {
+                        occluders
+                            .iter()
+                            .flatten()
+                            .any(|o| o.covers(y, t, OCCLUDER_MARGIN_M))
+                    }) {
+                        *side = None;
+                    }
+                }
+            }
+        }
         // Occlusion only ever adds to a silhouette: drop edges that stand out beyond the
         // part's smooth trend (an arm or a hand in front of the trunk in the side view).
         for side in 0..2 {
@@ -522,11 +581,12 @@ impl SectionPlan {
                     scratch.trend_d.push(sign * (t - p));
                 }
             }
-            let keep = outward_inliers(
-                &scratch.trend_y,
-                &scratch.trend_d,
-                chain.axis.outward_tolerance(),
-            );
+            let tolerance = if known {
+                KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M
+            } else {
+                chain.axis.outward_tolerance()
+            };
+            let keep = outward_inliers(&scratch.trend_y, &scratch.trend_d, tolerance);
             let mut k = 0;
             for c in constraints.iter_mut() {
                 if c[side].is_some() {
@@ -767,6 +827,87 @@ mod tests {
     }
 
     #[test]
+    fn a_known_limb_hides_its_edges_and_the_trunk_is_followed_elsewhere() {
+        // A cylinder (front at z = +0.10) seen by a side view whose front edge has a belly
+        // 2 cm out between y = 0.25 and 0.45 and a forearm 6 cm out between 0.60 and 0.80.
+        // With the forearm's capsule known, the belly is followed and the forearm ignored.
+        let mesh = shapes::elliptic_cylinder(0.15, 0.10, 1.0, 48, 40);
+        let calib = crate::camera::StationCalibration::nominal(640, 480, 600.0, 3.0, 0.5, 0.5);
+        let labels = vec![Part::Torso; mesh.vertex_count()];
+        let excluded = vec![false; mesh.vertex_count()];
+        let set = select_controls(
+            &mesh,
+            &labels,
+            &excluded,
+            0.025,
+            Variant::SliceExtremes,
+            &calib.front,
+            &calib.side,
+        );
+        let out_at = |y: f64| {
+            if (0.25..=0.45).contains(&y) {
+                0.02
+            } else if (0.60..=0.80).contains(&y) {
+                0.06
+            } else {
+                0.0
+            }
+        };
+        let targets: Vec<Option<DVec3>> = set
+            .controls
+            .iter()
+            .map(|c| {
+                let p = mesh.positions[c.vertex as usize];
+                let dz = if c.status == Status::Front {
+                    out_at(p.y)
+                } else {
+                    0.0
+                };
+                Some(p + DVec3::Z * dz)
+            })
+            .collect();
+        let forearm = SideOccluder {
+            a: glam::DVec2::new(0.60, 0.15),
+            b: glam::DVec2::new(0.80, 0.15),
+            radius: 0.02,
+        };
+        assert!(forearm.covers(0.7, 0.16, 0.0) && !forearm.covers(0.7, 0.10, 0.015));
+        let plan = SectionPlan::new(&set);
+        let mut scratch = SectionScratch::default();
+        let mut out = Vec::new();
+        plan.targets(
+            &mesh.positions,
+            &set,
+            &targets,
+            &[Some(forearm)],
+            &mut scratch,
+            &mut out,
+        );
+        // The front-most vertex's target at a height: how far the front moved.
+        let front_shift = |y0: f64, y1: f64| -> f64 {
+            let mut best = (f64::MIN, 0.0);
+            for (v, t) in out.iter().enumerate() {
+                let p = mesh.positions[v];
+                if let Some(t) = t.filter(|_| p.y >= y0 && p.y <= y1 && p.x.abs() < 0.02) {
+                    if p.z > best.0 {
+                        best = (p.z, t.z - p.z);
+                    }
+                }
+            }
+            best.1
+        };
+        let belly = front_shift(0.33, 0.37);
+        let arm = front_shift(0.68, 0.72);
+        assert!(belly > 0.012, "belly followed by {belly}");
+        assert!(arm.abs() < 0.01, "forearm taken for the trunk: {arm}");
+        // The forearm's heights count as unseen in the front-to-back evidence.
+        let e = plan
+            .evidence_at(&scratch, Region::Torso, 0.70, 0.05)
+            .expect("evidence");
+        assert!(e.depth.seen < 0.75 && e.width.seen > 0.99, "{e:?}");
+    }
+
+    #[test]
     fn sections_take_every_vertex_to_the_scaled_section() {
         // Template: an elliptic cylinder 0.30 x 0.20 m; targets of its extreme controls as
         // if the subject were 0.33 x 0.18 m and 1 cm further forward. Every vertex must
@@ -796,7 +937,7 @@ mod tests {
         let plan = SectionPlan::new(&set);
         let mut scratch = SectionScratch::default();
         let mut out = Vec::new();
-        plan.targets(&mesh.positions, &set, &targets, &mut scratch, &mut out);
+        plan.targets(&mesh.positions, &set, &targets, &[], &mut scratch, &mut out);
         let mut n = 0;
         for (v, t) in out.iter().enumerate() {
             let Some(t) = t else { continue };

@@ -433,6 +433,7 @@ fn observation(r: &SilhouetteResult, stature_override: Option<f64>) -> Option<Ob
         torso_point: hip,
         arm_angles: arms,
         leg_angles: legs,
+        side_occluders: [None; crate::fit::sections::MAX_SIDE_OCCLUDERS],
     })
 }
 
