@@ -3,7 +3,8 @@
 //! against the recording's true silhouettes and landmarks (`recordings/demo.truth/`).
 
 use fitstation::person::{
-    kp, FrameRef, PersonModel, PersonOutput, PoseLandmarker, Roi, SelfieSegmenter,
+    kp, resample_roi, FrameRef, PersonModel, PersonOutput, PoseLandmarker, Roi, SelfieSegmenter,
+    INPUT_SIZE,
 };
 use fitstation::recording::Recording;
 use image::{GrayImage, RgbImage};
@@ -13,6 +14,10 @@ use std::path::{Path, PathBuf};
 const SUBJECT_FRAME: usize = 17;
 /// A frame of the demo without anyone in view.
 const EMPTY_FRAME: usize = 3;
+
+fn reference_crop_path() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/person_crop.ppm")
+}
 
 fn demo_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("recordings")
@@ -335,4 +340,156 @@ fn person_model_survey() {
     for r in rows {
         println!("{r}");
     }
+}
+
+/// The network input of the TFLite cross-check (`tests/data/person_crop.ppm`): demo frame
+/// 17 (front), the pose crop of its true silhouette, resampled to 256x256 by
+/// `resample_roi` and rounded to 8 bits. Regenerate explicitly with
+/// `PERSON_REGENERATE=1 cargo test --release --test person_models write_reference_crop -- --ignored`,
+/// then re-run `tools/import_mediapipe.py` with `--reference` to refresh its TFLite outputs.
+#[test]
+#[ignore]
+fn write_reference_crop() {
+    if std::env::var_os("PERSON_REGENERATE").is_none() {
+        println!(
+            "set PERSON_REGENERATE=1 to rewrite {}",
+            reference_crop_path().display()
+        );
+        return;
+    }
+    let ((front, _), (mfront, _)) = demo_frame(SUBJECT_FRAME);
+    let mut buf = vec![0.0f32; INPUT_SIZE * INPUT_SIZE * 3];
+    resample_roi(
+        FrameRef::from_image(&front),
+        person_roi(&mfront, POSE_CROP),
+        &mut buf,
+    );
+    let mut ppm = format!("P6\n{INPUT_SIZE} {INPUT_SIZE}\n255\n").into_bytes();
+    ppm.extend(
+        buf.iter()
+            .map(|v| (v * 255.0).round().clamp(0.0, 255.0) as u8),
+    );
+    std::fs::write(reference_crop_path(), ppm).expect("write the reference crop");
+}
+
+/// An 8-bit binary PPM (P6): (width, height, RGB bytes).
+fn read_ppm(path: &Path) -> (usize, usize, Vec<u8>) {
+    let data = std::fs::read(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let mut fields = Vec::new();
+    let mut pos = 0;
+    while fields.len() < 4 {
+        while data[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        let start = pos;
+        while !data[pos].is_ascii_whitespace() {
+            pos += 1;
+        }
+        fields.push(String::from_utf8_lossy(&data[start..pos]).into_owned());
+    }
+    assert_eq!(
+        (fields[0].as_str(), fields[3].as_str()),
+        ("P6", "255"),
+        "not an 8-bit PPM"
+    );
+    let (w, h): (usize, usize) = (
+        fields[1].parse().expect("width"),
+        fields[2].parse().expect("height"),
+    );
+    let pix = data[pos + 1..].to_vec();
+    assert_eq!(pix.len(), w * h * 3, "{}: truncated", path.display());
+    (w, h, pix)
+}
+
+fn json_f32s(v: &serde_json::Value) -> Vec<f32> {
+    v.as_array()
+        .expect("a JSON array")
+        .iter()
+        .map(|x| x.as_f64().expect("a number") as f32)
+        .collect()
+}
+
+fn max_abs_diff(a: &[f32], b: &[f32]) -> f32 {
+    assert_eq!(a.len(), b.len());
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f32::max)
+}
+
+/// The Rust inference (tract-onnx on the imported ONNX) against the TFLite runtime on the
+/// same network input: `tests/data/person_reference.json` holds TFLite's outputs on
+/// `tests/data/person_crop.ppm`, written by `tools/import_mediapipe.py --reference`.
+/// Measured: selfie 3.5e-6; pose landmarks 7.6e-5 px, depth 2.7e-4, visibility 1e-6,
+/// mask 1.1e-5, world 1.9e-6 m. The tolerances leave room for other CPUs' kernels.
+#[test]
+fn tract_matches_tflite_on_the_reference_crop() {
+    let (w, h, rgb) = read_ppm(&reference_crop_path());
+    assert_eq!((w, h), (INPUT_SIZE, INPUT_SIZE));
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/person_reference.json");
+    let text = std::fs::read_to_string(&path).expect("read person_reference.json");
+    let reference: serde_json::Value = serde_json::from_str(&text).expect("parse the reference");
+    let frame = FrameRef::new(&rgb, w, h).expect("frame");
+    // The crop is the network input itself: the full-frame ROI resamples it unchanged.
+    let roi = Roi::full_frame(w, h);
+    let cells: Vec<usize> = (0..32)
+        .flat_map(|j| (0..32).map(move |i| (4 + 8 * j) * INPUT_SIZE + 4 + 8 * i))
+        .collect();
+    let mut out = PersonOutput::new();
+
+    let mut selfie = SelfieSegmenter::load_default().expect("load the selfie model");
+    selfie
+        .infer(frame, roi, &mut out)
+        .expect("selfie inference");
+    let prob: Vec<f32> = cells.iter().map(|&c| out.mask.prob[c]).collect();
+    let want = json_f32s(&reference["selfie_segmentation"]["prob"]);
+    let d_selfie = max_abs_diff(&prob, &want);
+    let person = want.iter().filter(|&&p| p >= 0.5).count();
+    println!(
+        "selfie: max |tract - TFLite| {d_selfie:.2e} over 1024 cells ({person} of them person)"
+    );
+    assert!(person > 50, "the reference crop should show a person");
+    assert!(
+        d_selfie <= 1e-4,
+        "selfie mask differs from TFLite by {d_selfie}"
+    );
+
+    let mut pose = PoseLandmarker::load_default().expect("load the pose model");
+    pose.infer(frame, roi, &mut out).expect("pose inference");
+    let pr = &reference["pose_landmark_full"];
+    let lm = json_f32s(&pr["landmarks"]);
+    let sig = |x: f32| 1.0 / (1.0 + (-x).exp());
+    let (mut d_xy, mut d_z, mut d_vis) = (0.0f32, 0.0f32, 0.0f32);
+    for (k, p) in out.keypoints.iter().chain(&out.aux).enumerate() {
+        let r = &lm[k * 5..k * 5 + 5];
+        d_xy = d_xy.max((p.x - r[0]).abs()).max((p.y - r[1]).abs());
+        d_z = d_z.max((p.z - r[2]).abs());
+        d_vis = d_vis
+            .max((p.visibility - sig(r[3])).abs())
+            .max((p.presence - sig(r[4])).abs());
+    }
+    let presence = out.presence.expect("presence");
+    let d_presence = (presence - pr["presence"].as_f64().expect("presence") as f32).abs();
+    let mask: Vec<f32> = cells.iter().map(|&c| out.mask.prob[c]).collect();
+    let d_mask = max_abs_diff(&mask, &json_f32s(&pr["mask_prob"]));
+    let world: Vec<f32> = pose.world_landmarks().iter().flatten().copied().collect();
+    let d_world = max_abs_diff(&world, &json_f32s(&pr["world_landmarks"])[..world.len()]);
+    println!(
+        "pose: max |tract - TFLite| landmarks x,y {d_xy:.2e} px, z {d_z:.2e}, visibility/presence \
+         {d_vis:.2e}, person presence {d_presence:.2e} (value {presence:.3}), mask {d_mask:.2e}, \
+         world {d_world:.2e} m"
+    );
+    assert!(presence > 0.5, "the reference crop should show a person");
+    assert!(d_xy <= 0.01, "landmarks differ from TFLite by {d_xy} px");
+    assert!(d_z <= 0.01, "landmark depth differs from TFLite by {d_z}");
+    assert!(d_vis <= 1e-4, "visibility differs from TFLite by {d_vis}");
+    assert!(
+        d_presence <= 1e-4,
+        "presence differs from TFLite by {d_presence}"
+    );
+    assert!(d_mask <= 1e-3, "pose mask differs from TFLite by {d_mask}");
+    assert!(
+        d_world <= 1e-4,
+        "world landmarks differ from TFLite by {d_world} m"
+    );
 }

@@ -3,7 +3,11 @@
 
 Usage:
     python3 -m pip download --no-deps mediapipe==0.10.14 -d DIR
-    python3 tools/import_mediapipe.py DIR/mediapipe-0.10.14-*.whl [--out models]
+    python3 tools/import_mediapipe.py DIR/mediapipe-0.10.14-*.whl [--out models] \
+        [--reference tests/data/person_crop.ppm --reference-out tests/data/person_reference.json]
+
+With --reference it also writes TFLite's outputs on that committed network input, which
+`tests/person_models.rs` compares with the Rust (tract-onnx) inference.
 
 Needs PyPI `tflite` (the flatbuffer reader), `onnx` and `numpy`; checks the result
 against the TFLite runtime (`ai-edge-litert` or `tflite-runtime`) when one is installed,
@@ -517,6 +521,71 @@ def test_input(shape):
     return img
 
 
+def read_ppm(path):
+    """An 8-bit binary PPM (P6) as an [1, H, W, 3] float array in [0, 1]."""
+    with open(path, "rb") as f:
+        data = f.read()
+    fields = []
+    pos = 0
+    while len(fields) < 4:
+        while data[pos:pos + 1].isspace():
+            pos += 1
+        if data[pos:pos + 1] == b"#":
+            pos = data.index(b"\n", pos) + 1
+            continue
+        end = pos
+        while not data[end:end + 1].isspace():
+            end += 1
+        fields.append(data[pos:end])
+        pos = end
+    if fields[0] != b"P6" or fields[3] != b"255":
+        raise ValueError(f"{path}: not an 8-bit binary PPM")
+    w, h = int(fields[1]), int(fields[2])
+    pix = np.frombuffer(data[pos + 1:pos + 1 + w * h * 3], np.uint8)
+    if pix.size != w * h * 3:
+        raise ValueError(f"{path}: truncated")
+    return pix.reshape(1, h, w, 3).astype(np.float32) / 255.0
+
+
+# Every 8th cell of a 256x256 map, from cell 4: a 32x32 sample for the reference file.
+SUBSAMPLE = (slice(4, None, 8), slice(4, None, 8))
+
+
+def reference_outputs(wheel, image_path):
+    """TFLite's outputs on a committed network input, for the Rust cross-check test."""
+    x = read_ppm(image_path)
+    if x.shape != (1, 256, 256, 3):
+        raise ValueError(f"{image_path}: expected a 256x256 image, found {x.shape}")
+    out = {"image": os.path.basename(image_path), "image_sha256": sha256_file(image_path),
+           "subsample": "cells [4::8, 4::8] of the 256x256 map, row-major"}
+    with zipfile.ZipFile(wheel) as z:
+        for name, member in MODELS.items():
+            tfl = z.read(member)
+            try:
+                r = tflite_runtime_outputs(tfl, x, reference_kernels=True)
+                runtime = "TFLite reference kernels"
+            except RuntimeError:
+                r = tflite_runtime_outputs(tfl, x, reference_kernels=False)
+                runtime = "TFLite XNNPACK"
+            if r is None:
+                sys.exit("import_mediapipe: --reference needs a TFLite runtime (pip install ai-edge-litert)")
+            ours = numpy_reference(Converter(tfl, name).convert(), x)
+            diffs = [float(np.max(np.abs(a.reshape(b.shape) - b))) for a, b in zip(r, ours)]
+            print(f"reference {name} ({runtime}): max |numpy(onnx) - TFLite| per output {diffs}")
+            if name == "selfie_segmentation":
+                out[name] = {"runtime": runtime,
+                             "prob": r[0][0, :, :, 0][SUBSAMPLE].ravel().tolist()}
+            else:
+                with np.errstate(over="ignore"):
+                    mask = 1.0 / (1.0 + np.exp(-r[2][0, :, :, 0].astype(np.float64)))
+                out[name] = {"runtime": runtime,
+                             "landmarks": r[0].ravel().tolist(),
+                             "presence": float(r[1].ravel()[0]),
+                             "mask_prob": mask[SUBSAMPLE].ravel().tolist(),
+                             "world_landmarks": r[4].ravel().tolist()}
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("wheel", help="the mediapipe-0.10.14 wheel (python3 -m pip download --no-deps mediapipe==0.10.14)")
@@ -524,6 +593,10 @@ def main():
     ap.add_argument("--tol", type=float, default=1e-3,
                     help="largest allowed output difference against TFLite's reference kernels, "
                          "relative to max(1, max |output|) (default 1e-3)")
+    ap.add_argument("--reference", metavar="PPM",
+                    help="a 256x256 network input (tests/data/person_crop.ppm): write TFLite's "
+                         "outputs on it to --reference-out for the Rust cross-check test")
+    ap.add_argument("--reference-out", metavar="JSON", default="tests/data/person_reference.json")
     args = ap.parse_args()
 
     if not os.path.isfile(args.wheel):
@@ -575,6 +648,13 @@ def main():
     for name, member, tsha, path, osha in report["models"]:
         print(f"{member} sha256 {tsha}")
         print(f"{path} sha256 {osha}")
+    if args.reference:
+        import json
+        ref = reference_outputs(args.wheel, args.reference)
+        with open(args.reference_out, "w") as f:
+            json.dump(ref, f, indent=None, separators=(",", ":"))
+            f.write("\n")
+        print(f"wrote {args.reference_out}")
     if not ok:
         sys.exit(f"import_mediapipe: an output differs from the reference by more than {args.tol}")
 

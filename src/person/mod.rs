@@ -458,6 +458,18 @@ mod tests {
     }
 
     #[test]
+    fn a_missing_model_names_the_folders_tried() {
+        let e = find_model("no_such_model.onnx").expect_err("no such file");
+        let msg = e.to_string();
+        assert!(
+            msg.contains("no_such_model.onnx") && msg.contains(MODELS_DIR_ENV),
+            "{msg}"
+        );
+        assert!(msg.contains(env!("CARGO_MANIFEST_DIR")), "{msg}");
+        assert!(find_model(POSE_MODEL_FILE).is_ok() && find_model(SELFIE_MODEL_FILE).is_ok());
+    }
+
+    #[test]
     fn frame_ref_checks_size() {
         assert!(FrameRef::new(&[0; 12], 2, 2).is_ok());
         assert!(matches!(
