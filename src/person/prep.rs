@@ -24,17 +24,18 @@ pub fn resample_roi(frame: FrameRef<'_>, roi: Roi, out: &mut [f32]) {
     let ny = (cell_h.ceil() as usize).clamp(1, MAX_SUBSAMPLES);
     let norm = 1.0 / (255.0 * (nx * ny) as f32);
     let (fw, fh) = (frame.width as i64, frame.height as i64);
-    // Frame column of sub-sample s of input column u (or -1 outside the frame): computed
-    // per row below without a buffer, as the column positions repeat on every row.
-    let col = |u: usize, s: usize| -> i64 {
-        let x = roi.x0 + (u as f32 + (s as f32 + 0.5) / nx as f32) * cell_w;
-        let i = x.floor() as i64;
-        if (0..fw).contains(&i) {
-            i
-        } else {
-            -1
+    // Frame column of every sub-sample of every input column (-1 outside the frame); the
+    // same on every row, so computed once, on the stack.
+    let mut cols = [-1i64; INPUT_SIZE * MAX_SUBSAMPLES];
+    for u in 0..INPUT_SIZE {
+        for s in 0..nx {
+            let x = roi.x0 + (u as f32 + (s as f32 + 0.5) / nx as f32) * cell_w;
+            let i = x.floor() as i64;
+            if (0..fw).contains(&i) {
+                cols[u * nx + s] = i;
+            }
         }
-    };
+    }
     for v in 0..INPUT_SIZE {
         let out_row = &mut out[v * INPUT_SIZE * 3..(v + 1) * INPUT_SIZE * 3];
         out_row.fill(0.0);
@@ -48,8 +49,7 @@ pub fn resample_roi(frame: FrameRef<'_>, roi: Roi, out: &mut [f32]) {
                 &frame.rgb[j as usize * frame.width * 3..(j as usize + 1) * frame.width * 3];
             for u in 0..INPUT_SIZE {
                 let (mut r, mut g, mut b) = (0u32, 0u32, 0u32);
-                for s in 0..nx {
-                    let i = col(u, s);
+                for &i in &cols[u * nx..(u + 1) * nx] {
                     if i >= 0 {
                         let p = &src_row[i as usize * 3..i as usize * 3 + 3];
                         r += u32::from(p[0]);
