@@ -295,7 +295,7 @@ fn person_model_survey() {
     let mut pose = PoseLandmarker::load_default().expect("load the pose model");
     let mut out = PersonOutput::new();
     let models: [&mut dyn PersonModel; 2] = [&mut selfie, &mut pose];
-    let mut rows = vec![String::new(); 0];
+    let mut rows: Vec<String> = Vec::new();
     let crops: [(&str, Option<f32>); 4] = [
         ("square x1.25", Some(1.25)),
         ("square x1.5", Some(1.5)),
