@@ -21,6 +21,7 @@ pub mod imgproc;
 pub mod landmarks;
 pub mod measure;
 pub mod mesh;
+pub mod person;
 pub mod pipeline;
 pub mod recording;
 pub mod segment;
