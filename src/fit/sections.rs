@@ -826,11 +826,9 @@ mod tests {
         assert!(long.windows(2).all(|w| w[1] >= w[0]), "monotone {long:?}");
     }
 
-    #[test]
-    fn a_known_limb_hides_its_edges_and_the_trunk_is_followed_elsewhere() {
-        // A cylinder (front at z = +0.10) seen by a side view whose front edge has a belly
-        // 2 cm out between y = 0.25 and 0.45 and a forearm 6 cm out between 0.60 and 0.80.
-        // With the forearm's capsule known, the belly is followed and the forearm ignored.
+    /// An elliptic cylinder 0.30 x 0.20 m, 1 m tall, labelled trunk, and its slice-extreme
+    /// controls every `step` metres.
+    fn torso_cylinder(step: f64) -> (crate::mesh::TriMesh, ControlSet) {
         let mesh = shapes::elliptic_cylinder(0.15, 0.10, 1.0, 48, 40);
         let calib = crate::camera::StationCalibration::nominal(640, 480, 600.0, 3.0, 0.5, 0.5);
         let labels = vec![Part::Torso; mesh.vertex_count()];
@@ -839,11 +837,20 @@ mod tests {
             &mesh,
             &labels,
             &excluded,
-            0.025,
+            step,
             Variant::SliceExtremes,
             &calib.front,
             &calib.side,
         );
+        (mesh, set)
+    }
+
+    #[test]
+    fn a_known_limb_hides_its_edges_and_the_trunk_is_followed_elsewhere() {
+        // A cylinder (front at z = +0.10) seen by a side view whose front edge has a belly
+        // 2 cm out between y = 0.25 and 0.45 and a forearm 6 cm out between 0.60 and 0.80.
+        // With the forearm's capsule known, the belly is followed and the forearm ignored.
+        let (mesh, set) = torso_cylinder(0.025);
         let out_at = |y: f64| {
             if (0.25..=0.45).contains(&y) {
                 0.02
@@ -912,19 +919,7 @@ mod tests {
         // Template: an elliptic cylinder 0.30 x 0.20 m; targets of its extreme controls as
         // if the subject were 0.33 x 0.18 m and 1 cm further forward. Every vertex must
         // land on the scaled, shifted ellipse (the map is affine per axis).
-        let mesh = shapes::elliptic_cylinder(0.15, 0.10, 1.0, 48, 40);
-        let calib = crate::camera::StationCalibration::nominal(640, 480, 600.0, 3.0, 0.5, 0.5);
-        let labels = vec![Part::Torso; mesh.vertex_count()];
-        let excluded = vec![false; mesh.vertex_count()];
-        let set = select_controls(
-            &mesh,
-            &labels,
-            &excluded,
-            0.05,
-            Variant::SliceExtremes,
-            &calib.front,
-            &calib.side,
-        );
+        let (mesh, set) = torso_cylinder(0.05);
         let (sx, sz, dz) = (1.1, 0.9, 0.01);
         let targets: Vec<Option<DVec3>> = set
             .controls
