@@ -1,11 +1,12 @@
 //! Times `measure()` on the MakeHuman body (13k vertices) against the per-frame budget:
 //! a fresh call (builds the height index and buffers) and a warm `Measurer` call (what
-//! the station pays per frame). Falls back to a synthetic stick body when the MakeHuman
+//! the station pays per frame). Falls back to the committed station template
+//! (`templates/makehuman-adult.obj`), then to a synthetic stick body, when the MakeHuman
 //! data is missing.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fitstation::measure::{girth_at, measure, LoopSelector, Measurer};
-use fitstation::mesh::io::read_obj;
+use fitstation::mesh::io::{read_mesh, read_obj};
 use fitstation::mesh::{shapes, TriMesh};
 use glam::DVec3;
 use std::hint::black_box;
@@ -23,6 +24,10 @@ fn makehuman() -> Option<TriMesh> {
         * 0.1;
     m.map_positions(|p| p * 0.1 - DVec3::new(0.0, floor, 0.0));
     Some(m)
+}
+
+fn template() -> Option<TriMesh> {
+    read_mesh(&Path::new(env!("CARGO_MANIFEST_DIR")).join("templates/makehuman-adult.obj")).ok()
 }
 
 fn stick_body() -> TriMesh {
@@ -46,10 +51,14 @@ fn stick_body() -> TriMesh {
 }
 
 fn bench(c: &mut Criterion) {
-    let (name, body) = match makehuman() {
-        Some(m) => ("makehuman", m),
-        None => {
-            eprintln!("MakeHuman body missing at {BASE_OBJ}: timing the stick body instead");
+    let (name, body) = match (makehuman(), template()) {
+        (Some(m), _) => ("makehuman", m),
+        (None, Some(t)) => {
+            eprintln!("MakeHuman body missing at {BASE_OBJ}: timing the station template");
+            ("template", t)
+        }
+        (None, None) => {
+            eprintln!("MakeHuman body and template missing: timing the stick body instead");
             ("stick", stick_body())
         }
     };
