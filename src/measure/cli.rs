@@ -1,5 +1,6 @@
 //! `fitstation measure MESH [--json]`: measures a body mesh file (OBJ or PLY, metres,
-//! station frame: +Y up, the subject faces +Z, +X the subject's left, soles on y = 0)
+//! station frame: +Y up, the subject faces +Z, +X the subject's left) after
+//! `shared/spec/measurements.md`
 //! and prints a table, or JSON whose `measurements_mm` object has the `report.json`
 //! keys of `shared/spec/formats.md`.
 
@@ -14,7 +15,7 @@ const FRAME_SHIFT_M: f64 = 1e-3;
 /// Arguments of `fitstation measure`.
 #[derive(Debug, Clone, clap::Args)]
 pub struct MeasureArgs {
-    /// Body mesh (.obj or .ply) in metres, station frame, soles on y = 0.
+    /// Body mesh (.obj or .ply) in metres, station frame (heights from its lowest point).
     pub mesh: PathBuf,
     /// Print JSON (`measurements_mm` with the report keys, levels, torso profile).
     #[arg(long)]
@@ -74,14 +75,20 @@ pub fn table(m: &Measurements) -> String {
         (
             "thigh girth left",
             m.thigh_girth_left_mm,
-            Some(l.thigh_m),
+            Some(l.thigh_left_m),
             "5.3.20",
         ),
         (
             "thigh girth right",
             m.thigh_girth_right_mm,
-            Some(l.thigh_m),
+            Some(l.thigh_right_m),
             "5.3.20",
+        ),
+        (
+            "hip girth max",
+            m.hip_girth_max_mm,
+            Some(l.hip_girth_max_m),
+            "(informational)",
         ),
     ];
     let mut s = format!(
@@ -89,13 +96,14 @@ pub fn table(m: &Measurements) -> String {
         "measurement", "mm", "level m", "ISO 8559-1"
     );
     for (name, mm, level, iso) in rows {
-        let level = level.map_or("-".to_string(), |y| format!("{y:.3}"));
+        let level = level.map_or("-".to_string(), |y| format!("{y:.4}"));
         s += &format!("{name:<18} {mm:>9.1} {level:>10}  {iso}\n");
     }
     s += &format!(
-        "levels: crotch {:.3} m, armpit {:.3} m; torso profile: {} samples\n",
+        "levels: crotch {:.4} m, armpit {:.4} m, body axis x {:.4} m; torso profile: {} samples\n",
         l.crotch_m,
         l.armpit_m,
+        l.axis_x_m,
         m.torso_profile.len()
     );
     s

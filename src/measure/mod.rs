@@ -1,86 +1,62 @@
-//! Body measurements on a standing body mesh: stature and tape girths after
-//! ISO 8559-1:2017, found geometrically on any topology.
+//! Body measurements on a standing body mesh: stature and tape girths, implementing
+//! the operational definitions of `shared/spec/measurements.md` (the station's
+//! `measure`, its reported values, the synthetic truth and every evaluation use them).
 //!
 //! # Conventions
 //! - Input: a [`TriMesh`] in the station frame (`shared/spec/formats.md`): metres, +Y up,
-//!   the subject faces +Z, +X is the subject's LEFT, soles on y = 0, standing in an
-//!   A-pose (arms away from the torso below the armpits, legs apart below the crotch).
-//!   Nothing here uses vertex indices: levels are found from the sections themselves.
-//! - Output: lengths in millimetres (`*_mm`), heights of levels in metres (`*_m`, station
-//!   y, i.e. above the floor when the soles are on y = 0).
-//! - A **girth** is a tape measure: the perimeter of the convex hull of a horizontal
-//!   cross-section loop, because a tape bridges hollows (between the breasts, the
-//!   navel, the spine groove). Sections come from slicing the mesh at height y and
-//!   splitting the cut into connected loops (torso, arms, legs are separate loops).
+//!   the subject faces +Z, +X is the subject's LEFT, standing in an A-pose. Nothing here
+//!   uses vertex indices: levels are found from the sections themselves.
+//! - **Heights** are measured from the mesh's own lowest point y0 (a body floating above
+//!   the floor is measured as if it stood on it); fractions of the stature S are taken
+//!   from there. Reported levels (`levels.*_m`) are station y, i.e. y0 + height.
+//! - Output lengths in millimetres (`*_mm`).
 //!
-//! # Landmark levels (found in this order)
-//! - **Body axis** x: the middle of the x-extent of the central loop (below) through
-//!   the bounding box centre at [`TORSO_PROBE_OF_STATURE`] of the stature (always the
-//!   abdomen on an adult: crotch height is 0.44-0.50 of stature).
-//! - Loops are **central** (torso) when the body axis crosses the middle 60 % of their
-//!   x-extent ([`slicer::CENTRAL_MARGIN_OF_WIDTH`]), else **left** (+X) or **right** by
-//!   the middle of their extent: thighs that press through each other on a
-//!   self-intersecting mesh stay two legs.
-//! - **Crotch** (`levels.crotch_m`): the highest level without a central loop, i.e. the
-//!   lower body is two separate leg loops. Searched downward from the probe in
-//!   [`COARSE_STEP_M`] steps, then bisected to [`LEVEL_TOLERANCE_M`].
-//! - **Armpit** (`levels.armpit_m`): the top of the highest run of levels (between the
-//!   crotch and [`ARMPIT_SEARCH_TOP_OF_STATURE`] of the stature, below the ears) at which
-//!   both arms are loops separate from the torso, and above which the torso loop reaches
-//!   over where the arms were (they have joined it). Taking the highest run makes a
-//!   forearm or hand that touches the hip lower down harmless; the joining test rejects
-//!   shoulder tops that slice as two caps beside a narrower neck. Found by scanning down
-//!   from the search top in [`COARSE_STEP_M`] steps, then bisected to
-//!   [`LEVEL_TOLERANCE_M`]. The torso's x-extent just below it gives the armpit x
-//!   positions.
-//! - `span` = armpit - crotch: the other levels are fractions of it, so they scale with
-//!   the trunk rather than with the legs.
+//! # Building blocks (spec "Building blocks")
+//! - **Slice** at y: the cut of the surface by the plane y, split into **loops** by the
+//!   connectivity of the cut segments (segments of triangles sharing a crossed edge are
+//!   one loop; a hole leaves an open piece, a non-manifold edge joins the pieces that
+//!   meet there). See [`slicer`].
+//! - **Girth** of a loop: the perimeter of the convex hull of its points in (x, z).
+//! - **Body axis** x: the x of the centroid of the hull of the largest loop (hull area)
+//!   of the slice at [`AXIS_PROBE_OF_STATURE`] S.
+//! - **Torso loop**: the loop reaching at least [`TORSO_REACH_OF_STATURE`] S to each
+//!   side of the axis (several: the largest hull area). **Side loops** are all others,
+//!   left (+X) or right by the x of their hull centroid; a side's **thigh loop** is its
+//!   largest side loop (hull area) below the crotch.
 //!
-//! # Measurements
-//! - **Stature** (ISO 8559-1 5.1.1): max y - min y of the mesh (soles to vertex).
-//! - **Chest girth** (5.3.4: horizontal girth under the armpits, over the shoulder
-//!   blades and across the chest/bust prominence): the maximum torso girth in the band
-//!   [armpit - [`CHEST_BAND_OF_SPAN`] span, armpit - [`CHEST_TOP_OFFSET_OF_SPAN`] span].
-//!   A quarter of the trunk below the armpit reaches the bust point of a full bust; the
-//!   small top offset keeps the tape off the armpit hollow itself. If an arm touches
-//!   the torso inside the band, the torso loop is cut at the armpit x positions widened
-//!   by [`ARM_CUT_MARGIN_M`] (the tape runs under the arms, not around them).
-//! - **Waist girth** (5.3.10: natural waist, between the lowest rib and the top of the
-//!   hip bone): the least torso girth in [crotch + [`WAIST_BAND_OF_SPAN`].0 span,
-//!   crotch + [`WAIST_BAND_OF_SPAN`].1 span]. Roughly (from typical adult proportions,
-//!   not a cited table), the iliac crest sits near half of the crotch-armpit span above
-//!   the crotch and the lowest rib near two thirds; the band is widened on both sides so
-//!   that it holds the natural waist of short- and long-waisted people, and the minimum
-//!   does the locating. When the least girth lies on the band's edge there is no
-//!   natural waist to find (a belly rounder than the ribs): the tape then goes at
-//!   [`WAIST_NO_NARROWING_OF_SPAN`], midway between iliac crest and lowest rib. On 24
-//!   MakeHuman adults (young/old, female/male, every muscle/weight extreme) the least
-//!   girth fell between 0.47 and 0.80 of the span; only the most obese reached the
-//!   band's top, under the ribs.
-//! - **Hip girth** (5.3.13: horizontal girth at the level of greatest buttock
-//!   prominence): the torso girth at the middle of the buttocks' bulge between the
-//!   crotch and the waist: the run of levels around the one where the torso reaches
-//!   furthest back (least z) whose back lies within [`HIP_PLATEAU_M`] of that point (on
-//!   a round seat the single deepest level wanders along a nearly flat back line). Not
-//!   the maximum girth of that band: just above the crotch the torso loop holds the
-//!   tops of both thighs, whose hull is often the widest section of all and is not
-//!   what a tape round the buttocks reads.
-//! - **Thigh girth, left and right** (5.3.20: horizontal girth of the thigh just below
-//!   the gluteal fold): the hull girth of each leg loop [`THIGH_DROP_OF_STATURE`] of
-//!   the stature below the crotch (the gluteal fold lies a few centimetres below the
-//!   crotch). Left is the loop on the +X side of the body axis.
-//! - **Torso profile**: torso girth every ~[`PROFILE_STEP_M`] from the crotch to the
-//!   armpit (at the middles of equal steps).
+//! # Levels
+//! - **Crotch**: the lowest height, searched upwards from
+//!   [`CROTCH_SEARCH_BOTTOM_OF_STATURE`] S on a [`GRID_STEP_M`] grid, with a torso loop;
+//!   then bisection to [`FINE_STEP_M`] (the reported level has a torso loop).
+//! - **Armpit**: the highest height, searched downwards from
+//!   [`ARMPIT_SEARCH_TOP_OF_STATURE`] S (not below [`ARMPIT_SEARCH_BOTTOM_OF_STATURE`]
+//!   S), with a torso loop and on each side a side loop of girth at least
+//!   [`ARM_MIN_GIRTH_OF_STATURE`] S; same grid and bisection.
 //!
-//! Chest, waist and hip levels are first picked on the profile, then refined by
-//! golden-section search within one profile step around the pick, to
-//! [`REFINE_TOLERANCE_M`].
+//! # Measurements (spec table; every extremum on a [`GRID_STEP_M`] grid, refined on a
+//! [`FINE_STEP_M`] grid within one grid step around the best grid point)
+//! - `stature`: highest minus lowest point.
+//! - `chest_girth`: the largest torso girth from the armpit down to
+//!   [`CHEST_BAND_OF_STATURE`] S below it.
+//! - Waist and hip, in the spec's order: (1) the least torso girth between crotch and
+//!   chest gives a first waist level; (2) `hip_girth_max`: the largest torso girth
+//!   between the crotch and that level; (3) `waist_girth`: the least torso girth between
+//!   the `hip_girth_max` level and the chest level; (4) `hip_girth`: the torso girth
+//!   where the torso loop reaches furthest back (least z) between crotch and waist.
+//! - `thigh_girth_left` / `_right`: the largest girth of that side's thigh loop from
+//!   [`THIGH_BAND_BELOW_CROTCH_M`].0 to .1 below the crotch.
+//!
+//! The band grids are anchored at the crotch (torso bands: crotch + k step up to the
+//! armpit, which is added as the last sample; thigh band: from its top down), and a
+//! band's own ends count as grid points. The torso grid is sliced once and serves
+//! every torso band (it is also returned as [`Measurements::torso_profile`]).
 //!
 //! # Speed
 //! A [`Measurer`] keeps the triangles' edge table (while the topology stays), a height
-//! index of the triangles and all section buffers between calls: each section visits
-//! only the triangles near its level, and [`Measurer::measure_into`] allocates nothing
-//! once warm. The free [`measure`] and [`girth_at`] use one such `Measurer` per thread.
+//! index of the triangles and all section buffers between calls: each slice visits only
+//! the triangles near its level, and [`Measurer::measure_into`] allocates nothing once
+//! warm. The level scans only test loop extents; hulls are built where a rule needs
+//! them. The free [`measure`] and [`girth_at`] use one such `Measurer` per thread.
 
 pub mod cli;
 pub mod slicer;
@@ -88,57 +64,61 @@ pub mod slicer;
 use crate::mesh::TriMesh;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
-use slicer::{HullStats, LevelIndex, Placement, SectionScratch};
+use slicer::{HullStats, LevelIndex, SectionScratch};
 
 pub use cli::{run, MeasureArgs};
 
-/// Height (fraction of stature above the soles) where the torso is certainly one loop.
-pub const TORSO_PROBE_OF_STATURE: f64 = 0.6;
-/// The crotch search gives up below this fraction of the stature.
-pub const CROTCH_SEARCH_BOTTOM_OF_STATURE: f64 = 0.3;
-/// The armpit search stops at this fraction of the stature (shoulders are at about
-/// 0.82, the ears at about 0.93: ear loops must not pass for arms).
-pub const ARMPIT_SEARCH_TOP_OF_STATURE: f64 = 0.85;
-/// Step of the coarse level searches, metres.
-pub const COARSE_STEP_M: f64 = 0.02;
-/// Bisection tolerance of the crotch and armpit levels, metres.
-pub const LEVEL_TOLERANCE_M: f64 = 1e-4;
-/// How far below a found level (crotch, armpit) its section is read: the legs just
-/// under the crotch, the torso's x-extent (armpit x positions) just under the armpit.
-pub const CLEARANCE_BELOW_LEVEL_M: f64 = 0.002;
-/// Chest band depth below the armpit, fraction of the crotch-armpit span.
-pub const CHEST_BAND_OF_SPAN: f64 = 0.25;
-/// Top of the chest band below the armpit, fraction of the span.
-pub const CHEST_TOP_OFFSET_OF_SPAN: f64 = 0.01;
-/// Margin added outside the armpit x positions before cutting off a touching arm.
-pub const ARM_CUT_MARGIN_M: f64 = 0.005;
-/// Waist band, fractions of the span above the crotch.
-pub const WAIST_BAND_OF_SPAN: (f64, f64) = (0.45, 0.8);
-/// Waist level, fraction of the span above the crotch, when the torso has no narrowing
-/// inside the waist band: midway between the iliac crest (~0.5) and the lowest rib
-/// (~0.67), the fallback tape position of the WHO waist protocol.
-pub const WAIST_NO_NARROWING_OF_SPAN: f64 = 0.58;
-/// Depth tolerance of the buttocks' bulge, metres: levels whose back is within this of
-/// the most posterior point belong to the bulge whose middle is the hip level.
-pub const HIP_PLATEAU_M: f64 = 0.003;
-/// Thigh level below the crotch, fraction of the stature.
-pub const THIGH_DROP_OF_STATURE: f64 = 0.03;
-/// Torso profile spacing, metres (the exact step divides the span evenly).
-pub const PROFILE_STEP_M: f64 = 0.01;
-/// Bracket width at which the local refinement around a picked level stops, metres.
-pub const REFINE_TOLERANCE_M: f64 = 0.5e-3;
+/// Height (fraction of stature) of the slice whose largest loop gives the body axis.
+pub const AXIS_PROBE_OF_STATURE: f64 = 0.60;
+/// How far a torso loop reaches to each side of the body axis, fraction of stature.
+pub const TORSO_REACH_OF_STATURE: f64 = 0.04;
+/// The crotch search starts here (fraction of stature) and goes up.
+pub const CROTCH_SEARCH_BOTTOM_OF_STATURE: f64 = 0.30;
+/// The armpit search starts here (fraction of stature) and goes down.
+pub const ARMPIT_SEARCH_TOP_OF_STATURE: f64 = 0.88;
+/// The armpit search stops here (fraction of stature).
+pub const ARMPIT_SEARCH_BOTTOM_OF_STATURE: f64 = 0.62;
+/// Least girth of an arm loop at the armpit level, fraction of stature.
+pub const ARM_MIN_GIRTH_OF_STATURE: f64 = 0.05;
+/// Depth of the chest band below the armpit, fraction of stature.
+pub const CHEST_BAND_OF_STATURE: f64 = 0.10;
+/// Thigh band below the crotch (top, bottom), metres.
+pub const THIGH_BAND_BELOW_CROTCH_M: (f64, f64) = (0.01, 0.08);
+/// Grid step of every search, metres.
+pub const GRID_STEP_M: f64 = 0.002;
+/// Step of the refinement grid and tolerance of the level bisections, metres.
+pub const FINE_STEP_M: f64 = 0.000_25;
+/// Fine steps on each side of the best grid point that a refinement visits (one grid
+/// step minus one fine step: the grid points themselves are already known).
+const FINE_STEPS_PER_SIDE: i32 = 7;
+/// Report keys of the tape girths (`measurements_mm`), without the informational
+/// [`HIP_GIRTH_MAX_KEY`].
+pub const GIRTH_KEYS: [&str; 5] = [
+    "chest_girth",
+    "waist_girth",
+    "hip_girth",
+    "thigh_girth_left",
+    "thigh_girth_right",
+];
+/// The optional, informational report key of the largest torso girth below the waist.
+pub const HIP_GIRTH_MAX_KEY: &str = "hip_girth_max";
 
 const MM_PER_M: f64 = 1000.0;
 
-/// Heights (station y, metres) of the levels the measurements were taken at.
+/// Heights (station y, metres) of the levels the measurements were taken at, and the
+/// body axis.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct MeasurementLevels {
+    /// x of the body axis, metres.
+    pub axis_x_m: f64,
     pub crotch_m: f64,
     pub armpit_m: f64,
     pub chest_m: f64,
     pub waist_m: f64,
     pub hip_m: f64,
-    pub thigh_m: f64,
+    pub hip_girth_max_m: f64,
+    pub thigh_left_m: f64,
+    pub thigh_right_m: f64,
 }
 
 /// One sample of the torso girth profile.
@@ -157,15 +137,17 @@ pub struct Measurements {
     pub hip_girth_mm: f64,
     pub thigh_girth_left_mm: f64,
     pub thigh_girth_right_mm: f64,
+    /// The largest torso girth between the crotch and the waist (informational).
+    pub hip_girth_max_mm: f64,
     pub levels: MeasurementLevels,
-    /// Torso girth every ~[`PROFILE_STEP_M`] from the crotch to the armpit, upward.
+    /// Torso girth on the [`GRID_STEP_M`] grid from the crotch to the armpit, upward.
     pub torso_profile: Vec<GirthSample>,
 }
 
 impl Measurements {
-    /// The `measurements_mm` object of `report.json` (`shared/spec/formats.md`): keys
-    /// `stature`, `chest_girth`, `waist_girth`, `hip_girth`, `thigh_girth_left`,
-    /// `thigh_girth_right`, values in millimetres.
+    /// The `measurements_mm` object of `report.json` (`shared/spec/formats.md`,
+    /// `shared/spec/measurements.md`): keys `stature`, [`GIRTH_KEYS`] and the optional
+    /// [`HIP_GIRTH_MAX_KEY`], values in millimetres.
     pub fn to_report_map(&self) -> serde_json::Map<String, serde_json::Value> {
         let mut m = serde_json::Map::new();
         for (k, v) in [
@@ -175,6 +157,7 @@ impl Measurements {
             ("hip_girth", self.hip_girth_mm),
             ("thigh_girth_left", self.thigh_girth_left_mm),
             ("thigh_girth_right", self.thigh_girth_right_mm),
+            (HIP_GIRTH_MAX_KEY, self.hip_girth_max_mm),
         ] {
             m.insert(k.to_string(), serde_json::json!(v));
         }
@@ -189,16 +172,24 @@ pub enum MeasureError {
     EmptyMesh,
     #[error("invalid mesh: {0}")]
     InvalidMesh(String),
-    #[error("no torso: no central section loop about the body axis at y = {y_m:.3} m ({TORSO_PROBE_OF_STATURE} of the stature); not a standing body?")]
+    #[error("no body axis: the slice at y = {y_m:.3} m ({AXIS_PROBE_OF_STATURE} of the stature) is empty; not a standing body?")]
     NoTorso { y_m: f64 },
-    #[error("no crotch: the lower body is not two separate legs anywhere between y = {bottom_m:.3} m and {top_m:.3} m; legs together or not a standing body?")]
+    #[error("no crotch: no torso loop appears between y = {bottom_m:.3} m and {top_m:.3} m above two separate legs; legs together or not a standing body?")]
     NoCrotch { bottom_m: f64, top_m: f64 },
-    #[error("no {side} leg loop at y = {y_m:.3} m")]
-    NoLeg { side: BodySide, y_m: f64 },
-    #[error("no armpit: the arms are never both separate from the torso between y = {bottom_m:.3} m and {top_m:.3} m (arms against the body, or not an A-pose?)")]
+    #[error("no {side} thigh loop between y = {bottom_m:.3} m and {top_m:.3} m")]
+    NoLeg {
+        side: BodySide,
+        bottom_m: f64,
+        top_m: f64,
+    },
+    #[error("no armpit: never a torso with both arms apart from it between y = {bottom_m:.3} m and {top_m:.3} m (arms against the body, or not an A-pose?)")]
     NoArmpit { bottom_m: f64, top_m: f64 },
-    #[error("no torso loop at y = {y_m:.3} m while measuring {what}")]
-    NoTorsoAt { y_m: f64, what: &'static str },
+    #[error("no torso loop between y = {bottom_m:.3} m and {top_m:.3} m while measuring {what}")]
+    NoTorsoAt {
+        bottom_m: f64,
+        top_m: f64,
+        what: &'static str,
+    },
 }
 
 /// The subject's side: left is +X in the station frame.
@@ -206,6 +197,16 @@ pub enum MeasureError {
 pub enum BodySide {
     Left,
     Right,
+}
+
+impl BodySide {
+    /// Whether x lies on this side of x = `axis_x`.
+    fn holds(self, x: f64, axis_x: f64) -> bool {
+        match self {
+            BodySide::Left => x > axis_x,
+            BodySide::Right => x < axis_x,
+        }
+    }
 }
 
 impl std::fmt::Display for BodySide {
@@ -217,19 +218,16 @@ impl std::fmt::Display for BodySide {
     }
 }
 
-/// Which loop(s) of a horizontal section a girth is taken around.
+/// Which loop(s) of a horizontal slice a girth is taken around.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LoopSelector {
-    /// The hull of every loop of the section together.
+    /// The hull of every loop of the slice together.
     Whole,
-    /// The central loop about x = `axis_x` (see [`slicer::Placement`]; the largest by
-    /// bounding box if several are, e.g. a cavity inside the body).
+    /// The torso loop about the body axis x = `axis_x` (reach: [`TORSO_REACH_OF_STATURE`]
+    /// of the mesh's stature).
     Torso { axis_x: f64 },
-    /// As [`LoopSelector::Torso`], keeping only the part of the loop with x in
-    /// [`x_min`, `x_max`]: cuts off an arm that touches the torso.
-    TorsoClipped { axis_x: f64, x_min: f64, x_max: f64 },
-    /// The largest loop (by bounding box) placed on `side` of x = `axis_x` (a leg,
-    /// below the crotch; left = +X).
+    /// The largest (hull area) side loop on `side` of x = `axis_x` by its hull centroid
+    /// (below the crotch: the thigh loop).
     Side { side: BodySide, axis_x: f64 },
 }
 
@@ -269,23 +267,25 @@ pub fn measure(mesh: &TriMesh) -> Result<Measurements, MeasureError> {
     with_thread_measurer(|m| m.measure(mesh))
 }
 
-/// A girth at one level, with the loop's extent (internal to the level searches).
+
+/// A torso loop's hull at one height (internal to the band searches).
 #[derive(Debug, Clone, Copy)]
 struct Sample {
     y: f64,
     hull: HullStats,
 }
 
-/// What a local refinement looks for.
+/// What a band search looks for.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Objective {
     MaxGirth,
     MinGirth,
-    /// The most posterior torso point (least z).
+    /// The torso loop reaching furthest back (least z).
     MinZ,
 }
 
 impl Objective {
+    /// Smaller is better.
     fn key(self, h: &HullStats) -> f64 {
         match self {
             Objective::MaxGirth => -h.perimeter_m,
@@ -295,19 +295,31 @@ impl Objective {
     }
 }
 
+/// Slack on band ends and grid counts, metres (float rounding of sums of steps).
+const HEIGHT_EPS_M: f64 = 1e-9;
+
+fn in_band(y: f64, band: (f64, f64)) -> bool {
+    y >= band.0 - HEIGHT_EPS_M && y <= band.1 + HEIGHT_EPS_M
+}
+
+/// Whether a loop reaches at least `reach` to each side of x = `axis_x`.
+fn straddles(l: &slicer::LoopInfo, axis_x: f64, reach: f64) -> bool {
+    l.x_min <= axis_x - reach && l.x_max >= axis_x + reach
+}
+
 /// Measurement executor: owns the triangle height index and the section buffers, so
 /// measuring a fitted body every frame allocates only the result.
 #[derive(Debug, Clone, Default)]
 pub struct Measurer {
     index: LevelIndex,
     section: SectionScratch,
+    /// The torso grid from the crotch to the armpit.
     profile: Vec<Sample>,
     /// Positions the index was built for (`loaded` once built).
     loaded_positions: Vec<DVec3>,
     loaded: bool,
     y_min: f64,
     y_max: f64,
-    x_mid: f64,
 }
 
 impl Measurer {
@@ -343,100 +355,147 @@ impl Measurer {
                 "a vertex position is not finite".into(),
             ));
         }
-        // Bounds of the vertices in use (stray unused vertices do not count).
-        let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+        // Heights of the vertices in use (stray unused vertices do not count).
+        let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
         for t in &mesh.triangles {
             for &v in t {
-                let p = mesh.positions[v as usize];
-                lo = lo.min(p);
-                hi = hi.max(p);
+                let y = mesh.positions[v as usize].y;
+                lo = lo.min(y);
+                hi = hi.max(y);
             }
         }
-        self.y_min = lo.y;
-        self.y_max = hi.y;
-        self.x_mid = 0.5 * (lo.x + hi.x);
-        self.index.rebuild(mesh, lo.y, hi.y);
+        self.y_min = lo;
+        self.y_max = hi;
+        self.index.rebuild(mesh, lo, hi);
         self.loaded_positions.clone_from(&mesh.positions);
         self.loaded = true;
         Ok(())
+    }
+
+    fn stature(&self) -> f64 {
+        self.y_max - self.y_min
+    }
+
+    /// Station y of a height given as a fraction of the stature above the lowest point.
+    fn at_stature(&self, fraction: f64) -> f64 {
+        self.y_min + fraction * self.stature()
     }
 
     fn cut(&mut self, mesh: &TriMesh, y: f64) {
         self.section.cut(mesh, &self.index, y);
     }
 
-    /// Index of the torso loop of the last section: the largest (by bounding box, a
-    /// cheap stand-in for area) central loop about x = `axis_x`.
-    fn torso_loop(&self, axis_x: f64) -> Option<usize> {
+    /// Whether the last slice has a torso loop about x = `axis_x` (loop extents only).
+    fn has_torso(&self, axis_x: f64) -> bool {
+        let reach = TORSO_REACH_OF_STATURE * self.stature();
         self.section
             .loops()
             .iter()
+            .any(|l| straddles(l, axis_x, reach))
+    }
+
+    /// Index and hull of the torso loop of the last slice: the loop straddling the axis
+    /// by the reach; of several, the largest hull area.
+    fn torso(&mut self, axis_x: f64) -> Option<(usize, HullStats)> {
+        let reach = TORSO_REACH_OF_STATURE * self.stature();
+        let mut best: Option<(usize, HullStats)> = None;
+        for i in 0..self.section.loops().len() {
+            if !straddles(&self.section.loops()[i], axis_x, reach) {
+                continue;
+            }
+            if let Some(h) = self.section.loop_hull(i) {
+                if best.is_none_or(|(_, b)| h.area_m2 > b.area_m2) {
+                    best = Some((i, h));
+                }
+            }
+        }
+        best
+    }
+
+    /// Index of the torso loop of the last slice, without a hull when only one loop
+    /// straddles the axis.
+    fn torso_index(&mut self, axis_x: f64) -> Option<usize> {
+        let reach = TORSO_REACH_OF_STATURE * self.stature();
+        let loops = self.section.loops();
+        let mut straddling = loops
+            .iter()
             .enumerate()
-            .filter(|(_, l)| l.placement(axis_x) == Placement::Central)
-            .max_by(|a, b| box_area(a.1).total_cmp(&box_area(b.1)))
-            .map(|(i, _)| i)
+            .filter(|(_, l)| straddles(l, axis_x, reach));
+        let first = straddling.next()?.0;
+        if straddling.next().is_none() {
+            return Some(first);
+        }
+        self.torso(axis_x).map(|(i, _)| i)
     }
 
-    /// Whether the last section has a loop placed left and one placed right of the
-    /// axis (legs below the crotch, arms between the hands and the armpits).
-    fn loops_on_both_sides(&self, axis_x: f64) -> bool {
-        let loops = self.section.loops();
-        loops.iter().any(|l| l.placement(axis_x) == Placement::Left)
-            && loops
-                .iter()
-                .any(|l| l.placement(axis_x) == Placement::Right)
+    /// Hull of the largest (hull area) side loop of the last slice on `side` of
+    /// x = `axis_x` by its hull centroid (the torso loop is not a side loop).
+    fn side_loop(&mut self, side: BodySide, axis_x: f64) -> Option<HullStats> {
+        let torso = self.torso_index(axis_x);
+        let mut best: Option<HullStats> = None;
+        for i in 0..self.section.loops().len() {
+            let l = self.section.loops()[i];
+            // A loop wholly on the other side has its centroid there too.
+            let other_side = match side {
+                BodySide::Left => l.x_max <= axis_x,
+                BodySide::Right => l.x_min >= axis_x,
+            };
+            if Some(i) == torso || other_side {
+                continue;
+            }
+            if let Some(h) = self.section.loop_hull(i) {
+                if side.holds(h.centroid_x, axis_x) && best.is_none_or(|b| h.area_m2 > b.area_m2)
+                {
+                    best = Some(h);
+                }
+            }
+        }
+        best
     }
 
-    /// With a torso loop and loops on both sides of it in the last section: the
-    /// innermost x of the left loops and of the right loops (where the arms begin).
-    fn arm_inner_edges(&self, axis_x: f64) -> Option<(f64, f64)> {
-        self.torso_loop(axis_x)?;
-        let loops = self.section.loops();
-        let left = loops
-            .iter()
-            .filter(|l| l.placement(axis_x) == Placement::Left)
-            .map(|l| l.x_min)
-            .fold(f64::INFINITY, f64::min);
-        let right = loops
-            .iter()
-            .filter(|l| l.placement(axis_x) == Placement::Right)
-            .map(|l| l.x_max)
-            .fold(f64::NEG_INFINITY, f64::max);
-        (left.is_finite() && right.is_finite()).then_some((left, right))
+    /// Whether the last slice has, on `side` of the axis, a side loop (not loop
+    /// `torso`) of girth at least `min_girth` (metres). Hulls are built only when the
+    /// loop's extent leaves the answer open: a convex hull's perimeter lies between
+    /// twice its larger extent and twice the sum of its extents.
+    fn has_arm(&mut self, side: BodySide, axis_x: f64, torso: usize, min_girth: f64) -> bool {
+        for i in 0..self.section.loops().len() {
+            let l = self.section.loops()[i];
+            let (w, d) = (l.x_max - l.x_min, l.z_max - l.z_min);
+            let (wholly_on_side, wholly_other) = match side {
+                BodySide::Left => (l.x_min > axis_x, l.x_max <= axis_x),
+                BodySide::Right => (l.x_max < axis_x, l.x_min >= axis_x),
+            };
+            if i == torso || wholly_other || 2.0 * (w + d) < min_girth {
+                continue;
+            }
+            if wholly_on_side && 2.0 * w.max(d) >= min_girth {
+                return true;
+            }
+            if let Some(h) = self.section.loop_hull(i) {
+                if h.perimeter_m >= min_girth && side.holds(h.centroid_x, axis_x) {
+                    return true;
+                }
+            }
+        }
+        false
+    }
+
+    /// The armpit predicate on the last slice: a torso loop, and on each side a
+    /// separate arm loop of girth at least [`ARM_MIN_GIRTH_OF_STATURE`] S.
+    fn arms_apart(&mut self, axis_x: f64) -> bool {
+        let min_girth = ARM_MIN_GIRTH_OF_STATURE * self.stature();
+        let Some(torso) = self.torso_index(axis_x) else {
+            return false;
+        };
+        self.has_arm(BodySide::Left, axis_x, torso, min_girth)
+            && self.has_arm(BodySide::Right, axis_x, torso, min_girth)
     }
 
     fn select(&mut self, selector: LoopSelector) -> Option<HullStats> {
         match selector {
             LoopSelector::Whole => self.section.whole_hull(),
-            LoopSelector::Torso { axis_x } => {
-                let i = self.torso_loop(axis_x)?;
-                self.section.loop_hull(i, None)
-            }
-            LoopSelector::TorsoClipped {
-                axis_x,
-                x_min,
-                x_max,
-            } => {
-                let i = self.torso_loop(axis_x)?;
-                let info = self.section.loops()[i];
-                let clip = (info.x_min < x_min || info.x_max > x_max).then_some((x_min, x_max));
-                self.section.loop_hull(i, clip)
-            }
-            LoopSelector::Side { side, axis_x } => {
-                let on_side = |l: &slicer::LoopInfo| match side {
-                    BodySide::Left => l.placement(axis_x) == Placement::Left,
-                    BodySide::Right => l.placement(axis_x) == Placement::Right,
-                };
-                let i = self
-                    .section
-                    .loops()
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, l)| on_side(l))
-                    .max_by(|a, b| box_area(a.1).total_cmp(&box_area(b.1)))
-                    .map(|(i, _)| i)?;
-                self.section.loop_hull(i, None)
-            }
+            LoopSelector::Torso { axis_x } => self.torso(axis_x).map(|(_, h)| h),
+            LoopSelector::Side { side, axis_x } => self.side_loop(side, axis_x),
         }
     }
 
@@ -444,88 +503,201 @@ impl Measurer {
     /// [`girth_at`]; the height index is rebuilt only when the mesh changed.
     pub fn girth_at(&mut self, mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
         self.load(mesh).ok()?;
-        self.hull_at(mesh, y, selector).map(|h| h.perimeter_m)
-    }
-
-    /// Cuts at `y` and returns the hull of the selected loop.
-    fn hull_at(&mut self, mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<HullStats> {
         self.cut(mesh, y);
-        self.select(selector)
+        self.select(selector).map(|h| h.perimeter_m)
     }
 
-    /// Bisects between `lo` (predicate false) and `hi` (predicate true) to
-    /// [`LEVEL_TOLERANCE_M`]; returns the final (lo, hi).
+    /// The torso loop's hull at height `y`.
+    fn torso_at(&mut self, mesh: &TriMesh, y: f64, axis_x: f64) -> Option<Sample> {
+        self.cut(mesh, y);
+        self.torso(axis_x).map(|(_, hull)| Sample { y, hull })
+    }
+
+    /// Bisects between a height where `pred` is false and one where it is true until
+    /// they are [`FINE_STEP_M`] apart; returns the true end.
     fn bisect(
         &mut self,
         mesh: &TriMesh,
-        mut lo: f64,
-        mut hi: f64,
-        pred: impl Fn(&Self) -> bool,
-    ) -> (f64, f64) {
-        while (hi - lo).abs() > LEVEL_TOLERANCE_M {
-            let mid = 0.5 * (lo + hi);
+        mut no: f64,
+        mut yes: f64,
+        mut pred: impl FnMut(&mut Self) -> bool,
+    ) -> f64 {
+        while (yes - no).abs() > FINE_STEP_M + HEIGHT_EPS_M {
+            let mid = 0.5 * (no + yes);
             self.cut(mesh, mid);
             if pred(self) {
-                hi = mid;
+                yes = mid;
             } else {
-                lo = mid;
+                no = mid;
             }
         }
-        (lo, hi)
+        yes
     }
 
-    /// Golden-section search of `objective` over [max(band.0, y0 - step),
-    /// min(band.1, y0 + step)] around the profile pick `start`, to [`REFINE_TOLERANCE_M`];
-    /// returns the best level seen (`start` if none is better).
-    fn refine(
-        &mut self,
-        mesh: &TriMesh,
-        start: Sample,
-        step: f64,
-        band: (f64, f64),
-        selector: &dyn Fn(f64) -> LoopSelector,
-        objective: Objective,
-    ) -> Sample {
-        let inv_phi = 0.5 * (5f64.sqrt() - 1.0);
-        let mut best = start;
-        let eval = |m: &mut Self, y: f64, best: &mut Sample| -> f64 {
-            match m.hull_at(mesh, y, selector(y)) {
-                Some(h) => {
-                    let k = objective.key(&h);
-                    if k < objective.key(&best.hull) {
-                        *best = Sample { y, hull: h };
-                    }
-                    k
+    /// Body axis: x of the hull centroid of the largest loop (hull area) at
+    /// [`AXIS_PROBE_OF_STATURE`] S.
+    fn body_axis(&mut self, mesh: &TriMesh) -> Result<f64, MeasureError> {
+        let y = self.at_stature(AXIS_PROBE_OF_STATURE);
+        self.cut(mesh, y);
+        let mut best: Option<HullStats> = None;
+        for i in 0..self.section.loops().len() {
+            if let Some(h) = self.section.loop_hull(i) {
+                if best.is_none_or(|b| h.area_m2 > b.area_m2) {
+                    best = Some(h);
                 }
-                None => f64::INFINITY,
-            }
-        };
-        let (mut a, mut b) = (band.0.max(start.y - step), band.1.min(start.y + step));
-        // The optimum may sit on the band's edge (chest just under the armpit): try it.
-        for edge in [band.0, band.1] {
-            if (edge - a).abs() < 1e-12 || (edge - b).abs() < 1e-12 {
-                eval(self, edge, &mut best);
             }
         }
-        let mut c = b - inv_phi * (b - a);
-        let mut d = a + inv_phi * (b - a);
-        let (mut fc, mut fd) = (eval(self, c, &mut best), eval(self, d, &mut best));
-        while b - a > REFINE_TOLERANCE_M {
-            if fc < fd {
-                b = d;
-                d = c;
-                fd = fc;
-                c = b - inv_phi * (b - a);
-                fc = eval(self, c, &mut best);
-            } else {
-                a = c;
-                c = d;
-                fc = fd;
-                d = a + inv_phi * (b - a);
-                fd = eval(self, d, &mut best);
+        best.map(|h| h.centroid_x)
+            .ok_or(MeasureError::NoTorso { y_m: y })
+    }
+
+    /// Crotch: the lowest grid height from [`CROTCH_SEARCH_BOTTOM_OF_STATURE`] S up
+    /// with a torso loop, then bisected against the grid height below it. The search
+    /// ends at the axis probe; a torso at its very start means the legs are not apart.
+    fn find_crotch(&mut self, mesh: &TriMesh, axis_x: f64) -> Result<f64, MeasureError> {
+        let bottom = self.at_stature(CROTCH_SEARCH_BOTTOM_OF_STATURE);
+        let top = self.at_stature(AXIS_PROBE_OF_STATURE);
+        let n = ((top - bottom) / GRID_STEP_M + HEIGHT_EPS_M).floor() as usize;
+        for k in 0..=n {
+            let y = bottom + k as f64 * GRID_STEP_M;
+            self.cut(mesh, y);
+            if self.has_torso(axis_x) {
+                if k == 0 {
+                    break;
+                }
+                return Ok(self.bisect(mesh, y - GRID_STEP_M, y, |m| m.has_torso(axis_x)));
+            }
+        }
+        Err(MeasureError::NoCrotch {
+            bottom_m: bottom,
+            top_m: top,
+        })
+    }
+
+    /// Armpit: the highest grid height from [`ARMPIT_SEARCH_TOP_OF_STATURE`] S down to
+    /// [`ARMPIT_SEARCH_BOTTOM_OF_STATURE`] S where both arms are apart from the torso,
+    /// then bisected against the grid height above it.
+    fn find_armpit(&mut self, mesh: &TriMesh, axis_x: f64) -> Result<f64, MeasureError> {
+        let top = self.at_stature(ARMPIT_SEARCH_TOP_OF_STATURE);
+        let bottom = self.at_stature(ARMPIT_SEARCH_BOTTOM_OF_STATURE);
+        let n = ((top - bottom) / GRID_STEP_M + HEIGHT_EPS_M).floor() as usize;
+        for k in 0..=n {
+            let y = top - k as f64 * GRID_STEP_M;
+            self.cut(mesh, y);
+            if self.arms_apart(axis_x) {
+                if k == 0 {
+                    return Ok(y);
+                }
+                return Ok(self.bisect(mesh, y + GRID_STEP_M, y, |m| m.arms_apart(axis_x)));
+            }
+        }
+        Err(MeasureError::NoArmpit {
+            bottom_m: bottom,
+            top_m: top,
+        })
+    }
+
+    /// The torso grid: crotch + k [`GRID_STEP_M`] below the armpit, then the armpit.
+    fn build_profile(&mut self, mesh: &TriMesh, axis_x: f64, crotch: f64, armpit: f64) {
+        let mut profile = std::mem::take(&mut self.profile);
+        profile.clear();
+        let n = ((armpit - crotch) / GRID_STEP_M + HEIGHT_EPS_M).floor() as usize;
+        for k in 0..=n {
+            let y = crotch + k as f64 * GRID_STEP_M;
+            if y >= armpit - HEIGHT_EPS_M {
+                break;
+            }
+            profile.extend(self.torso_at(mesh, y, axis_x));
+        }
+        profile.extend(self.torso_at(mesh, armpit, axis_x));
+        self.profile = profile;
+    }
+
+    /// The best torso sample by `objective` in `band` (station y): over the grid
+    /// samples inside it and `ends` (the band's ends where they are known samples),
+    /// then over the fine grid within one grid step of the best, inside the band.
+    fn band_extremum(
+        &mut self,
+        mesh: &TriMesh,
+        axis_x: f64,
+        band: (f64, f64),
+        ends: &[Sample],
+        objective: Objective,
+    ) -> Option<Sample> {
+        let better = |s: &Sample, best: &Option<Sample>| {
+            best.is_none_or(|b| objective.key(&s.hull) < objective.key(&b.hull))
+        };
+        let mut best: Option<Sample> = None;
+        for s in self.profile.iter().chain(ends) {
+            if in_band(s.y, band) && better(s, &best) {
+                best = Some(*s);
+            }
+        }
+        let grid_best = best?;
+        for j in -FINE_STEPS_PER_SIDE..=FINE_STEPS_PER_SIDE {
+            let y = grid_best.y + j as f64 * FINE_STEP_M;
+            if j == 0 || !in_band(y, band) {
+                continue;
+            }
+            if let Some(s) = self.torso_at(mesh, y, axis_x) {
+                if better(&s, &best) {
+                    best = Some(s);
+                }
             }
         }
         best
+    }
+
+    /// Each side's thigh girth (metres) and its level: the largest girth of the side's
+    /// thigh loop on the grid from [`THIGH_BAND_BELOW_CROTCH_M`].0 below the crotch
+    /// down to .1, refined on the fine grid around each side's best grid level.
+    fn thighs(
+        &mut self,
+        mesh: &TriMesh,
+        axis_x: f64,
+        crotch: f64,
+    ) -> Result<[(f64, f64); 2], MeasureError> {
+        let band = (
+            crotch - THIGH_BAND_BELOW_CROTCH_M.1,
+            crotch - THIGH_BAND_BELOW_CROTCH_M.0,
+        );
+        const SIDES: [BodySide; 2] = [BodySide::Left, BodySide::Right];
+        let mut best: [Option<(f64, f64)>; 2] = [None; 2];
+        let consider = |best: &mut Option<(f64, f64)>, y: f64, girth: f64| {
+            if best.is_none_or(|b| girth > b.1) {
+                *best = Some((y, girth));
+            }
+        };
+        let n = ((band.1 - band.0) / GRID_STEP_M + HEIGHT_EPS_M).floor() as usize;
+        for k in 0..=n {
+            let y = band.1 - k as f64 * GRID_STEP_M;
+            self.cut(mesh, y);
+            for (slot, side) in best.iter_mut().zip(SIDES) {
+                if let Some(h) = self.side_loop(side, axis_x) {
+                    consider(slot, y, h.perimeter_m);
+                }
+            }
+        }
+        let mut out = [(0.0, 0.0); 2];
+        for ((slot, side), out) in best.iter_mut().zip(SIDES).zip(&mut out) {
+            let (grid_y, _) = slot.ok_or(MeasureError::NoLeg {
+                side,
+                bottom_m: band.0,
+                top_m: band.1,
+            })?;
+            for j in -FINE_STEPS_PER_SIDE..=FINE_STEPS_PER_SIDE {
+                let y = grid_y + j as f64 * FINE_STEP_M;
+                if j == 0 || !in_band(y, band) {
+                    continue;
+                }
+                self.cut(mesh, y);
+                if let Some(h) = self.side_loop(side, axis_x) {
+                    consider(slot, y, h.perimeter_m);
+                }
+            }
+            *out = slot.unwrap_or((grid_y, 0.0));
+        }
+        Ok(out)
     }
 
     /// Measures a standing body; see [`measure`] and the module docs.
@@ -540,13 +712,17 @@ impl Measurer {
             hip_girth_mm: 0.0,
             thigh_girth_left_mm: 0.0,
             thigh_girth_right_mm: 0.0,
+            hip_girth_max_mm: 0.0,
             levels: MeasurementLevels {
+                axis_x_m: 0.0,
                 crotch_m: 0.0,
                 armpit_m: 0.0,
                 chest_m: 0.0,
                 waist_m: 0.0,
                 hip_m: 0.0,
-                thigh_m: 0.0,
+                hip_girth_max_m: 0.0,
+                thigh_left_m: 0.0,
+                thigh_right_m: 0.0,
             },
             torso_profile: Vec::new(),
         };
@@ -566,253 +742,70 @@ impl Measurer {
         out: &mut Measurements,
     ) -> Result<(), MeasureError> {
         self.load(mesh)?;
-        let (y_min, y_max) = (self.y_min, self.y_max);
-        let stature = y_max - y_min;
-        let bounds_mid_x = self.x_mid;
-        // Body axis from the abdomen section.
-        let probe_y = y_min + TORSO_PROBE_OF_STATURE * stature;
-        self.cut(mesh, probe_y);
-        let probe = self
-            .torso_loop(bounds_mid_x)
-            .ok_or(MeasureError::NoTorso { y_m: probe_y })?;
-        let info = self.section.loops()[probe];
-        let axis_x = 0.5 * (info.x_min + info.x_max);
-        let has_torso = move |m: &Self| m.torso_loop(axis_x).is_some();
-
-        // Crotch: highest level without a loop across the axis, below the probe.
-        let bottom = y_min + CROTCH_SEARCH_BOTTOM_OF_STATURE * stature;
-        let mut y = probe_y;
-        let crotch = loop {
-            let below = y - COARSE_STEP_M;
-            if below < bottom {
-                return Err(MeasureError::NoCrotch {
-                    bottom_m: bottom,
-                    top_m: probe_y,
-                });
-            }
-            self.cut(mesh, below);
-            if !has_torso(self) {
-                break self.bisect(mesh, below, y, has_torso).0;
-            }
-            y = below;
-        };
-        let leg_y = crotch - CLEARANCE_BELOW_LEVEL_M;
-        self.cut(mesh, leg_y);
-        for (side, ok) in [
-            (
-                BodySide::Left,
-                self.section
-                    .loops()
-                    .iter()
-                    .any(|l| l.placement(axis_x) == Placement::Left),
-            ),
-            (
-                BodySide::Right,
-                self.section
-                    .loops()
-                    .iter()
-                    .any(|l| l.placement(axis_x) == Placement::Right),
-            ),
-        ] {
-            if !ok {
-                return Err(MeasureError::NoLeg { side, y_m: leg_y });
-            }
+        let stature = self.stature();
+        let axis_x = self.body_axis(mesh)?;
+        let crotch = self.find_crotch(mesh, axis_x)?;
+        let armpit = self.find_armpit(mesh, axis_x)?;
+        if armpit <= crotch {
+            return Err(MeasureError::NoArmpit {
+                bottom_m: crotch,
+                top_m: self.at_stature(ARMPIT_SEARCH_TOP_OF_STATURE),
+            });
         }
-
-        // Armpit: scanning down from the search top, the first level where both arms
-        // are loops apart from the torso, just below a level where the torso loop
-        // reaches over where one of those arms is (it has joined; if the arms join at
-        // different heights, this is the lower armpit). Shoulder tops that slice as
-        // separate caps beside the neck fail the second test: above them the neck is
-        // narrower, not wider.
-        let arms_apart =
-            move |m: &Self| m.torso_loop(axis_x).is_some() && m.loops_on_both_sides(axis_x);
-        let top = y_min + ARMPIT_SEARCH_TOP_OF_STATURE * stature;
-        let no_armpit = MeasureError::NoArmpit {
-            bottom_m: crotch,
-            top_m: top,
+        self.build_profile(mesh, axis_x, crotch, armpit);
+        let no_torso = |band: (f64, f64), what| MeasureError::NoTorsoAt {
+            bottom_m: band.0,
+            top_m: band.1,
+            what,
         };
-        let mut above: Option<(f64, f64, f64)> = None;
-        let mut y = top;
-        let (a, b) = loop {
-            if y <= crotch {
-                return Err(no_armpit);
-            }
-            self.cut(mesh, y);
-            match self.arm_inner_edges(axis_x) {
-                Some((left_inner, right_inner)) => {
-                    if let Some((y_above, x_min, x_max)) = above {
-                        if x_max >= left_inner || x_min <= right_inner {
-                            break (y, y_above);
-                        }
-                    }
-                    above = None;
-                }
-                None => {
-                    above = self.torso_loop(axis_x).map(|i| {
-                        let l = self.section.loops()[i];
-                        (y, l.x_min, l.x_max)
-                    });
-                }
-            }
-            y -= COARSE_STEP_M;
+        let extremum = |m: &mut Self, band, ends: &[Sample], objective, what| {
+            m.band_extremum(mesh, axis_x, band, ends, objective)
+                .ok_or(no_torso(band, what))
         };
-        let not_apart = move |m: &Self| !arms_apart(m);
-        let (_, armpit) = self.bisect(mesh, a, b, not_apart);
-        let armpit_torso = self
-            .hull_at(
-                mesh,
-                armpit - CLEARANCE_BELOW_LEVEL_M,
-                LoopSelector::Torso { axis_x },
-            )
-            .ok_or(MeasureError::NoTorsoAt {
-                y_m: armpit - CLEARANCE_BELOW_LEVEL_M,
-                what: "armpit",
-            })?;
-        let span = armpit - crotch;
-
-        // Torso profile; chest-band levels cut off touching arms at the armpit x.
-        let chest_band = (
-            armpit - CHEST_BAND_OF_SPAN * span,
-            armpit - CHEST_TOP_OFFSET_OF_SPAN * span,
-        );
-        let cut_x = (
-            armpit_torso.x_min - ARM_CUT_MARGIN_M,
-            armpit_torso.x_max + ARM_CUT_MARGIN_M,
-        );
-        let torso_selector = move |y: f64| {
-            if y >= chest_band.0 {
-                LoopSelector::TorsoClipped {
-                    axis_x,
-                    x_min: cut_x.0,
-                    x_max: cut_x.1,
-                }
-            } else {
-                LoopSelector::Torso { axis_x }
-            }
-        };
-        let n = ((span / PROFILE_STEP_M).round() as usize).max(2);
-        let step = span / n as f64;
-        let mut profile = std::mem::take(&mut self.profile);
-        profile.clear();
-        for k in 0..n {
-            let y = crotch + (k as f64 + 0.5) * step;
-            if let Some(hull) = self.hull_at(mesh, y, torso_selector(y)) {
-                profile.push(Sample { y, hull });
-            }
-        }
-        let pick = |band: (f64, f64), objective: Objective| {
-            profile
-                .iter()
-                .filter(|s| s.y >= band.0 && s.y <= band.1)
-                .min_by(|a, b| objective.key(&a.hull).total_cmp(&objective.key(&b.hull)))
-                .copied()
-        };
-
-        let waist_band = (
-            crotch + WAIST_BAND_OF_SPAN.0 * span,
-            crotch + WAIST_BAND_OF_SPAN.1 * span,
-        );
-        let waist0 = pick(waist_band, Objective::MinGirth).ok_or(MeasureError::NoTorsoAt {
-            y_m: waist_band.0,
-            what: "waist",
-        })?;
-        let chest0 = pick(chest_band, Objective::MaxGirth).ok_or(MeasureError::NoTorsoAt {
-            y_m: chest_band.0,
-            what: "chest",
-        })?;
-        let mut waist = self.refine(
-            mesh,
-            waist0,
-            step,
-            waist_band,
-            &torso_selector,
+        let chest_band = ((armpit - CHEST_BAND_OF_STATURE * stature).max(crotch), armpit);
+        let chest = extremum(self, chest_band, &[], Objective::MaxGirth, "chest")?;
+        // Waist and hip in the spec's order (1)-(4).
+        let first_waist = extremum(
+            self,
+            (crotch, chest.y),
+            &[chest],
             Objective::MinGirth,
-        );
-        // No narrowing inside the band (the least girth is on its edge, as under an
-        // obese belly): take the level midway between iliac crest and lowest rib.
-        if (waist.y - waist_band.0).min(waist_band.1 - waist.y) <= REFINE_TOLERANCE_M {
-            let y = crotch + WAIST_NO_NARROWING_OF_SPAN * span;
-            let hull = self
-                .hull_at(mesh, y, torso_selector(y))
-                .ok_or(MeasureError::NoTorsoAt {
-                    y_m: y,
-                    what: "waist",
-                })?;
-            waist = Sample { y, hull };
-        }
-        let chest = self.refine(
-            mesh,
-            chest0,
-            step,
-            chest_band,
-            &torso_selector,
+            "waist",
+        )?;
+        let hip_max = extremum(
+            self,
+            (crotch, first_waist.y),
+            &[first_waist],
             Objective::MaxGirth,
-        );
-        let hip_band = (crotch + LEVEL_TOLERANCE_M, waist.y);
-        let hip0 = pick(hip_band, Objective::MinZ).ok_or(MeasureError::NoTorsoAt {
-            y_m: crotch,
-            what: "hip",
-        })?;
-        let deepest = self.refine(mesh, hip0, step, hip_band, &torso_selector, Objective::MinZ);
-        // The buttocks' bulge: the profile levels next to the deepest one that reach
-        // within HIP_PLATEAU_M of it. Its middle is the prominence; on a round or flat
-        // seat the deepest point alone wanders along the bulge.
-        let within = |s: &Sample| {
-            s.y >= hip_band.0
-                && s.y <= hip_band.1
-                && s.hull.z_min <= deepest.hull.z_min + HIP_PLATEAU_M
-        };
-        let i0 = profile
-            .iter()
-            .position(|s| s.y == hip0.y)
-            .unwrap_or_default();
-        let (mut lo, mut hi) = (i0, i0);
-        while lo > 0 && within(&profile[lo - 1]) {
-            lo -= 1;
-        }
-        while hi + 1 < profile.len() && within(&profile[hi + 1]) {
-            hi += 1;
-        }
-        let hip = if hi > lo {
-            let y = 0.5 * (profile[lo].y + profile[hi].y);
-            let hull = self
-                .hull_at(mesh, y, torso_selector(y))
-                .ok_or(MeasureError::NoTorsoAt {
-                    y_m: y,
-                    what: "hip",
-                })?;
-            Sample { y, hull }
-        } else {
-            deepest
-        };
-
-        self.profile = profile;
-
-        // Thighs just below the gluteal fold.
-        let thigh_y = crotch - THIGH_DROP_OF_STATURE * stature;
-        self.cut(mesh, thigh_y);
-        let mut thigh = [0.0; 2];
-        for (slot, side) in thigh.iter_mut().zip([BodySide::Left, BodySide::Right]) {
-            *slot = self
-                .select(LoopSelector::Side { side, axis_x })
-                .ok_or(MeasureError::NoLeg { side, y_m: thigh_y })?
-                .perimeter_m;
-        }
+            "hip_girth_max",
+        )?;
+        let waist = extremum(
+            self,
+            (hip_max.y, chest.y),
+            &[hip_max, chest],
+            Objective::MinGirth,
+            "waist",
+        )?;
+        let hip = extremum(self, (crotch, waist.y), &[waist], Objective::MinZ, "hip")?;
+        let [(thigh_left_m, left), (thigh_right_m, right)] = self.thighs(mesh, axis_x, crotch)?;
 
         out.stature_mm = stature * MM_PER_M;
         out.chest_girth_mm = chest.hull.perimeter_m * MM_PER_M;
         out.waist_girth_mm = waist.hull.perimeter_m * MM_PER_M;
         out.hip_girth_mm = hip.hull.perimeter_m * MM_PER_M;
-        out.thigh_girth_left_mm = thigh[0] * MM_PER_M;
-        out.thigh_girth_right_mm = thigh[1] * MM_PER_M;
+        out.hip_girth_max_mm = hip_max.hull.perimeter_m * MM_PER_M;
+        out.thigh_girth_left_mm = left * MM_PER_M;
+        out.thigh_girth_right_mm = right * MM_PER_M;
         out.levels = MeasurementLevels {
+            axis_x_m: axis_x,
             crotch_m: crotch,
             armpit_m: armpit,
             chest_m: chest.y,
             waist_m: waist.y,
             hip_m: hip.y,
-            thigh_m: thigh_y,
+            hip_girth_max_m: hip_max.y,
+            thigh_left_m,
+            thigh_right_m,
         };
         out.torso_profile.clear();
         out.torso_profile
@@ -822,8 +815,4 @@ impl Measurer {
             }));
         Ok(())
     }
-}
-
-fn box_area(l: &slicer::LoopInfo) -> f64 {
-    (l.x_max - l.x_min) * (l.z_max - l.z_min)
 }

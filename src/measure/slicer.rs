@@ -217,43 +217,17 @@ pub struct LoopInfo {
     seg_end: u32,
 }
 
-/// A loop is central (the torso) when the body axis crosses the middle of its x-extent,
-/// leaving at least this fraction of the extent on either side. Thighs that press into
-/// each other (a self-intersecting fit: each leg loop reaches past the axis) stay legs
-/// up to an overlap of 40 % of a thigh's width; a torso with one arm joined to it (the
-/// axis at a quarter to a third of the extent) stays the torso.
-pub const CENTRAL_MARGIN_OF_WIDTH: f64 = 0.2;
-
-/// Where a section loop lies relative to the body axis x = axis_x (left is +X).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Placement {
-    Central,
-    Left,
-    Right,
-}
-
-impl LoopInfo {
-    /// Where the loop lies relative to x = `axis_x`: central (see
-    /// [`CENTRAL_MARGIN_OF_WIDTH`]), else the side of its x-extent's middle.
-    pub fn placement(&self, axis_x: f64) -> Placement {
-        let margin = CENTRAL_MARGIN_OF_WIDTH * (self.x_max - self.x_min);
-        if self.x_min + margin <= axis_x && axis_x <= self.x_max - margin {
-            Placement::Central
-        } else if 0.5 * (self.x_min + self.x_max) > axis_x {
-            Placement::Left
-        } else {
-            Placement::Right
-        }
-    }
-}
-
-/// Perimeter, area and extent of a convex hull.
+/// Perimeter, area, centroid and extent of a convex hull.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HullStats {
     /// Perimeter of the hull, metres: the tape girth.
     pub perimeter_m: f64,
     /// Area of the hull, square metres.
     pub area_m2: f64,
+    /// Centroid of the hull's area (x, z), metres (the mean of its corners when the
+    /// hull has no area).
+    pub centroid_x: f64,
+    pub centroid_z: f64,
     pub x_min: f64,
     pub x_max: f64,
     pub z_min: f64,
@@ -445,30 +419,19 @@ impl SectionScratch {
         &self.loops
     }
 
-    /// Convex hull of loop `i`, keeping only the parts of its segments with x in
-    /// `clip_x` when given (the hull of the clipped curve, for cutting off an arm that
-    /// touches the torso). `None` if fewer than 3 hull points remain.
-    pub fn loop_hull(&mut self, i: usize, clip_x: Option<(f64, f64)>) -> Option<HullStats> {
+    /// Convex hull of loop `i` (each crossing point once); `None` if it has fewer
+    /// than 3 hull corners.
+    pub fn loop_hull(&mut self, i: usize) -> Option<HullStats> {
         let info = *self.loops.get(i)?;
         self.points.clear();
         for &s in &self.grouped[info.seg_start as usize..info.seg_end as usize] {
             let [a, b] = self.segs[s as usize];
-            match clip_x {
-                None => {
-                    let owned = self.owned[s as usize];
-                    if owned[0] {
-                        self.points.push(a);
-                    }
-                    if owned[1] {
-                        self.points.push(b);
-                    }
-                }
-                Some((x0, x1)) => {
-                    if let Some((p, q)) = clip_segment_x(a, b, x0, x1) {
-                        self.points.push(p);
-                        self.points.push(q);
-                    }
-                }
+            let owned = self.owned[s as usize];
+            if owned[0] {
+                self.points.push(a);
+            }
+            if owned[1] {
+                self.points.push(b);
             }
         }
         hull_stats(&mut self.points, &mut self.hull)
@@ -482,26 +445,6 @@ impl SectionScratch {
         }
         hull_stats(&mut self.points, &mut self.hull)
     }
-}
-
-/// The part of segment a-b with x in [x0, x1], if any.
-fn clip_segment_x(a: DVec2, b: DVec2, x0: f64, x1: f64) -> Option<(DVec2, DVec2)> {
-    let (mut t0, mut t1) = (0.0f64, 1.0f64);
-    let dx = b.x - a.x;
-    if dx.abs() < f64::EPSILON {
-        if a.x < x0 || a.x > x1 {
-            return None;
-        }
-    } else {
-        let (ta, tb) = ((x0 - a.x) / dx, (x1 - a.x) / dx);
-        let (lo, hi) = if ta < tb { (ta, tb) } else { (tb, ta) };
-        t0 = t0.max(lo);
-        t1 = t1.min(hi);
-        if t0 > t1 {
-            return None;
-        }
-    }
-    Some((a + (b - a) * t0, a + (b - a) * t1))
 }
 
 /// Andrew's monotone chain hull of `points` (sorted in place) into `hull`
@@ -530,20 +473,36 @@ pub fn hull_stats(points: &mut [DVec2], hull: &mut Vec<DVec2>) -> Option<HullSta
     let mut stats = HullStats {
         perimeter_m: 0.0,
         area_m2: 0.0,
+        centroid_x: 0.0,
+        centroid_z: 0.0,
         x_min: f64::INFINITY,
         x_max: f64::NEG_INFINITY,
         z_min: f64::INFINITY,
         z_max: f64::NEG_INFINITY,
     };
+    // Centroid relative to the first corner, for precision far from the origin.
+    let origin = hull[0];
+    let (mut moment, mut mean) = (DVec2::ZERO, DVec2::ZERO);
     for i in 0..hull.len() {
         let (p, q) = (hull[i], hull[(i + 1) % hull.len()]);
+        let (pr, qr) = (p - origin, q - origin);
+        let cross = pr.perp_dot(qr);
+        moment += (pr + qr) * cross;
+        mean += pr;
         stats.perimeter_m += (q - p).length();
-        stats.area_m2 += 0.5 * p.perp_dot(q);
+        stats.area_m2 += 0.5 * cross;
         stats.x_min = stats.x_min.min(p.x);
         stats.x_max = stats.x_max.max(p.x);
         stats.z_min = stats.z_min.min(p.y);
         stats.z_max = stats.z_max.max(p.y);
     }
+    let centroid = if stats.area_m2 > f64::EPSILON * stats.perimeter_m * stats.perimeter_m {
+        origin + moment / (6.0 * stats.area_m2)
+    } else {
+        origin + mean / hull.len() as f64
+    };
+    stats.centroid_x = centroid.x;
+    stats.centroid_z = centroid.y;
     Some(stats)
 }
 
@@ -588,7 +547,7 @@ mod tests {
         for y in [-0.2, -0.05, 0.0013, 0.11, 0.2] {
             let mut s = cut_all(&m, y);
             assert_eq!(s.loops().len(), 1);
-            let mine = s.loop_hull(0, None).expect("hull").perimeter_m;
+            let mine = s.loop_hull(0).expect("hull").perimeter_m;
             let pts: Vec<DVec2> = slice(&m, &Plane::horizontal(y))
                 .iter()
                 .flat_map(|l| l.points.clone())
@@ -602,7 +561,7 @@ mod tests {
     }
 
     #[test]
-    fn two_separate_prisms_give_two_loops_and_clipping_cuts_one_short() {
+    fn two_separate_prisms_give_two_loops_with_their_own_hulls() {
         let mut a = shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32);
         let b = shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32);
         let off = a.positions.len() as u32;
@@ -612,28 +571,39 @@ mod tests {
             .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
         let mut s = cut_all(&a, 0.5);
         assert_eq!(s.loops().len(), 2);
-        let left = s
-            .loops()
-            .iter()
-            .position(|l| l.x_min > 0.25)
-            .expect("right-hand prism");
-        assert_eq!(s.loops()[left].placement(0.5), Placement::Central);
-        assert_eq!(s.loops()[left].placement(0.0), Placement::Left);
-        assert_eq!(s.loops()[left].placement(0.9), Placement::Right);
-        // The axis 3 cm inside a 0.2 m wide loop: not central.
-        assert_eq!(s.loops()[left].placement(0.43), Placement::Left);
-        assert_eq!(s.loops()[left].placement(0.45), Placement::Central);
-        // Clipping a disc of radius r to |x - c| <= r/2 leaves a hull of perimeter
-        // 2 (r sqrt(3)) + 2 (r pi / 3) on the true circle; the 32-gon is close to it.
-        let clipped = s
-            .loop_hull(left, Some((0.45, 0.55)))
-            .expect("clipped hull")
-            .perimeter_m;
         let r = 0.1;
-        let expect = 2.0 * r * 3f64.sqrt() + 2.0 * r * std::f64::consts::PI / 3.0;
-        assert!((clipped - expect).abs() < 2e-3, "{clipped} vs {expect}");
-        let whole = s.whole_hull().expect("whole").perimeter_m;
         let circle = 2.0 * 32.0 * r * (std::f64::consts::PI / 32.0).sin();
+        let mut centres = Vec::new();
+        for i in 0..2 {
+            let h = s.loop_hull(i).expect("hull");
+            assert!((h.perimeter_m - circle).abs() < 1e-9, "{}", h.perimeter_m);
+            centres.push(h.centroid_x);
+            assert!(h.centroid_z.abs() < 1e-9);
+        }
+        centres.sort_by(f64::total_cmp);
+        assert!(centres[0].abs() < 1e-9 && (centres[1] - 0.5).abs() < 1e-9, "{centres:?}");
+        let whole = s.whole_hull().expect("whole").perimeter_m;
         assert!((whole - (circle + 2.0 * 0.5)).abs() < 1e-9, "{whole}");
+    }
+
+    #[test]
+    fn hull_centroid_of_a_triangle_and_of_an_offset_square() {
+        let mut hull = Vec::new();
+        let mut tri = [DVec2::new(0.0, 0.0), DVec2::new(3.0, 0.0), DVec2::new(0.0, 3.0)];
+        let h = hull_stats(&mut tri, &mut hull).expect("triangle");
+        assert!((h.centroid_x - 1.0).abs() < 1e-12 && (h.centroid_z - 1.0).abs() < 1e-12);
+        assert!((h.area_m2 - 4.5).abs() < 1e-12);
+        // A square far from the origin, with a point inside that is not a corner.
+        let c = DVec2::new(1000.3, -200.7);
+        let mut sq = [
+            c + DVec2::new(-0.1, -0.1),
+            c + DVec2::new(0.1, -0.1),
+            c + DVec2::new(0.1, 0.1),
+            c + DVec2::new(-0.1, 0.1),
+            c + DVec2::new(0.05, 0.02),
+        ];
+        let h = hull_stats(&mut sq, &mut hull).expect("square");
+        assert!((h.centroid_x - c.x).abs() < 1e-9 && (h.centroid_z - c.y).abs() < 1e-9);
+        assert!((h.perimeter_m - 0.8).abs() < 1e-12);
     }
 }
