@@ -267,7 +267,6 @@ pub fn measure(mesh: &TriMesh) -> Result<Measurements, MeasureError> {
     with_thread_measurer(|m| m.measure(mesh))
 }
 
-
 /// A torso loop's hull at one height (internal to the band searches).
 #[derive(Debug, Clone, Copy)]
 struct Sample {
@@ -444,8 +443,7 @@ impl Measurer {
                 continue;
             }
             if let Some(h) = self.section.loop_hull(i) {
-                if side.holds(h.centroid_x, axis_x) && best.is_none_or(|b| h.area_m2 > b.area_m2)
-                {
+                if side.holds(h.centroid_x, axis_x) && best.is_none_or(|b| h.area_m2 > b.area_m2) {
                     best = Some(h);
                 }
             }
@@ -762,7 +760,10 @@ impl Measurer {
             m.band_extremum(mesh, axis_x, band, ends, objective)
                 .ok_or(no_torso(band, what))
         };
-        let chest_band = ((armpit - CHEST_BAND_OF_STATURE * stature).max(crotch), armpit);
+        let chest_band = (
+            (armpit - CHEST_BAND_OF_STATURE * stature).max(crotch),
+            armpit,
+        );
         let chest = extremum(self, chest_band, &[], Objective::MaxGirth, "chest")?;
         // Waist and hip in the spec's order (1)-(4).
         let first_waist = extremum(

@@ -20,6 +20,9 @@ use glam::{DVec2, DVec3};
 /// Vertices closer than this to the cutting plane (metres) are treated as lying just
 /// above it, so no section segment degenerates (same rule as `mesh::section::slice`).
 const ON_PLANE_EPS_M: f64 = 1e-12;
+/// Slack of the single-precision triangle height ranges of a [`LevelIndex`], metres:
+/// far above their rounding error (a triangle within it of the plane is cut exactly).
+pub const RANGE_SLACK_M: f64 = 1e-5;
 /// Upper bound on the number of height buckets of a [`LevelIndex`].
 const MAX_BUCKETS: usize = 4096;
 
@@ -35,6 +38,10 @@ pub struct LevelIndex {
     n_buckets: usize,
     offsets: Vec<u32>,
     triangles: Vec<u32>,
+    /// Height range of each entry of `triangles` (same order), so that a section
+    /// rejects the triangles of its bucket that it does not cross without fetching
+    /// their vertices.
+    entry_ranges: Vec<[f32; 2]>,
     counts: Vec<u32>,
     ranges: Vec<(f64, f64)>,
     /// First and last bucket of each triangle.
@@ -100,13 +107,17 @@ impl LevelIndex {
         }
         self.triangles.clear();
         self.triangles.resize(acc as usize, 0);
+        self.entry_ranges.clear();
+        self.entry_ranges.resize(acc as usize, [0.0; 2]);
         // Reuse counts as fill cursors.
         for (c, &o) in counts.iter_mut().zip(&self.offsets) {
             *c = o;
         }
         for (i, &(b0, b1)) in spans.iter().enumerate() {
+            let (lo, hi) = self.ranges[i];
             for c in &mut counts[b0 as usize..=b1 as usize] {
                 self.triangles[*c as usize] = i as u32;
+                self.entry_ranges[*c as usize] = [lo as f32, hi as f32];
                 *c += 1;
             }
         }
@@ -191,11 +202,18 @@ impl LevelIndex {
 
     /// Triangles that may cross height `y` (a superset of those that do).
     pub fn candidates(&self, y: f64) -> &[u32] {
+        self.candidates_with_ranges(y).0
+    }
+
+    /// As [`LevelIndex::candidates`], with each triangle's height range (single
+    /// precision: compare with [`RANGE_SLACK_M`]).
+    pub fn candidates_with_ranges(&self, y: f64) -> (&[u32], &[[f32; 2]]) {
         if self.offsets.len() != self.n_buckets + 1 || self.n_buckets == 0 {
-            return &[];
+            return (&[], &[]);
         }
         let b = self.bucket(y);
-        &self.triangles[self.offsets[b] as usize..self.offsets[b + 1] as usize]
+        let r = self.offsets[b] as usize..self.offsets[b + 1] as usize;
+        (&self.triangles[r.clone()], &self.entry_ranges[r])
     }
 }
 
@@ -251,6 +269,8 @@ pub struct SectionScratch {
     /// Loop label of each segment, then segments grouped by loop.
     label: Vec<u32>,
     grouped: Vec<u32>,
+    /// Whether `grouped` and the loops' segment ranges belong to the last section.
+    is_grouped: bool,
     cursor: Vec<u32>,
     loops: Vec<LoopInfo>,
     points: Vec<DVec2>,
@@ -302,7 +322,11 @@ impl SectionScratch {
                 d
             }
         };
-        for &ti in index.candidates(y) {
+        let (candidates, ranges) = index.candidates_with_ranges(y);
+        for (&ti, r) in candidates.iter().zip(ranges) {
+            if f64::from(r[0]) > y + RANGE_SLACK_M || f64::from(r[1]) < y - RANGE_SLACK_M {
+                continue;
+            }
             let t = mesh.triangles[ti as usize];
             let d = t.map(dist);
             let mut ends = [DVec2::ZERO; 2];
@@ -364,7 +388,8 @@ impl SectionScratch {
             }
             self.owned.push(owned);
         }
-        // Label loops 0..L and group segments by loop (counting sort).
+        // Label loops 0..L with their extents; grouping waits for a hull.
+        self.is_grouped = false;
         self.label.clear();
         self.label.resize(n, u32::MAX);
         self.loops.clear();
@@ -397,6 +422,16 @@ impl SectionScratch {
                 info.z_max = info.z_max.max(p.y);
             }
         }
+        self.grouped = root_label;
+    }
+
+    /// Groups the last section's segments by loop (counting sort), once per section.
+    fn group(&mut self) {
+        if self.is_grouped {
+            return;
+        }
+        self.is_grouped = true;
+        let n = self.segs.len();
         let mut acc = 0u32;
         for (info, c) in self.loops.iter_mut().zip(self.cursor.iter_mut()) {
             info.seg_start = acc;
@@ -404,9 +439,8 @@ impl SectionScratch {
             info.seg_end = acc;
             *c = info.seg_start;
         }
-        root_label.clear();
-        root_label.resize(n, 0);
-        self.grouped = root_label;
+        self.grouped.clear();
+        self.grouped.resize(n, 0);
         for s in 0..n {
             let l = self.label[s] as usize;
             self.grouped[self.cursor[l] as usize] = s as u32;
@@ -422,6 +456,7 @@ impl SectionScratch {
     /// Convex hull of loop `i` (each crossing point once); `None` if it has fewer
     /// than 3 hull corners.
     pub fn loop_hull(&mut self, i: usize) -> Option<HullStats> {
+        self.group();
         let info = *self.loops.get(i)?;
         self.points.clear();
         for &s in &self.grouped[info.seg_start as usize..info.seg_end as usize] {
@@ -581,7 +616,10 @@ mod tests {
             assert!(h.centroid_z.abs() < 1e-9);
         }
         centres.sort_by(f64::total_cmp);
-        assert!(centres[0].abs() < 1e-9 && (centres[1] - 0.5).abs() < 1e-9, "{centres:?}");
+        assert!(
+            centres[0].abs() < 1e-9 && (centres[1] - 0.5).abs() < 1e-9,
+            "{centres:?}"
+        );
         let whole = s.whole_hull().expect("whole").perimeter_m;
         assert!((whole - (circle + 2.0 * 0.5)).abs() < 1e-9, "{whole}");
     }
@@ -589,7 +627,11 @@ mod tests {
     #[test]
     fn hull_centroid_of_a_triangle_and_of_an_offset_square() {
         let mut hull = Vec::new();
-        let mut tri = [DVec2::new(0.0, 0.0), DVec2::new(3.0, 0.0), DVec2::new(0.0, 3.0)];
+        let mut tri = [
+            DVec2::new(0.0, 0.0),
+            DVec2::new(3.0, 0.0),
+            DVec2::new(0.0, 3.0),
+        ];
         let h = hull_stats(&mut tri, &mut hull).expect("triangle");
         assert!((h.centroid_x - 1.0).abs() < 1e-12 && (h.centroid_z - 1.0).abs() < 1e-12);
         assert!((h.area_m2 - 4.5).abs() < 1e-12);
