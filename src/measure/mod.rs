@@ -306,6 +306,20 @@ fn straddles(l: &slicer::LoopInfo, axis_x: f64, reach: f64) -> bool {
     l.x_min <= axis_x - reach && l.x_max >= axis_x + reach
 }
 
+/// The lowest y of the triangles of `mesh` that have vertices on both sides of (or on)
+/// the vertical plane x = `axis_x` (+inf when none does).
+fn lowest_across_plane_x(mesh: &TriMesh, axis_x: f64) -> f64 {
+    let mut lowest = f64::INFINITY;
+    for t in &mesh.triangles {
+        let [a, b, c] = t.map(|v| mesh.positions[v as usize]);
+        let (x_lo, x_hi) = (a.x.min(b.x).min(c.x), a.x.max(b.x).max(c.x));
+        if x_lo <= axis_x && x_hi >= axis_x {
+            lowest = lowest.min(a.y.min(b.y).min(c.y));
+        }
+    }
+    lowest
+}
+
 /// Measurement executor: owns the triangle height index and the section buffers, so
 /// measuring a fitted body every frame allocates only the result.
 #[derive(Debug, Clone, Default)]
@@ -552,11 +566,19 @@ impl Measurer {
     /// Crotch: the lowest grid height from [`CROTCH_SEARCH_BOTTOM_OF_STATURE`] S up
     /// with a torso loop, then bisected against the grid height below it. The search
     /// ends at the axis probe; a torso at its very start means the legs are not apart.
+    ///
+    /// Grid heights below the lowest triangle that reaches across the plane x = axis
+    /// are skipped without slicing: a loop straddling the axis has a segment crossing
+    /// that plane, so none of them has a torso loop (the legs' gap).
     fn find_crotch(&mut self, mesh: &TriMesh, axis_x: f64) -> Result<f64, MeasureError> {
         let bottom = self.at_stature(CROTCH_SEARCH_BOTTOM_OF_STATURE);
         let top = self.at_stature(AXIS_PROBE_OF_STATURE);
         let n = ((top - bottom) / GRID_STEP_M + HEIGHT_EPS_M).floor() as usize;
-        for k in 0..=n {
+        let lowest_across = lowest_across_plane_x(mesh, axis_x);
+        let first = ((lowest_across - bottom) / GRID_STEP_M - 1.0)
+            .floor()
+            .clamp(0.0, n as f64) as usize;
+        for k in first..=n {
             let y = bottom + k as f64 * GRID_STEP_M;
             self.cut(mesh, y);
             if self.has_torso(axis_x) {

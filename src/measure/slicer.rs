@@ -38,10 +38,10 @@ pub struct LevelIndex {
     n_buckets: usize,
     offsets: Vec<u32>,
     triangles: Vec<u32>,
-    /// Height range of each entry of `triangles` (same order), so that a section
-    /// rejects the triangles of its bucket that it does not cross without fetching
-    /// their vertices.
-    entry_ranges: Vec<[f32; 2]>,
+    /// Each entry of `triangles` (same order) with its vertices and height range, so
+    /// that a section reads its bucket sequentially and rejects the triangles it does
+    /// not cross without fetching their vertices.
+    entries: Vec<Entry>,
     counts: Vec<u32>,
     ranges: Vec<(f64, f64)>,
     /// First and last bucket of each triangle.
@@ -57,15 +57,28 @@ pub struct LevelIndex {
     vertex_triangles: Vec<u32>,
 }
 
+/// A triangle as listed in a bucket of a [`LevelIndex`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Entry {
+    pub triangle: u32,
+    pub vertices: [u32; 3],
+    /// The triangle across each edge (vertices e, e+1), as in the neighbour table.
+    pub neighbours: [u32; 3],
+    /// Lowest and highest y of the triangle, single precision (compare with
+    /// [`RANGE_SLACK_M`]).
+    pub y_range: [f32; 2],
+}
+
 /// Marks a boundary edge in [`LevelIndex`]'s neighbour table.
 const NO_NEIGHBOUR: u32 = u32::MAX;
 
 impl LevelIndex {
     /// Rebuilds the index for `mesh` (indices must already be checked in range).
     ///
-    /// The bucket height is the mean height span of a triangle (at least the mesh
-    /// height / [`MAX_BUCKETS`]), so a triangle sits in about two buckets and a section
-    /// visits about twice the triangles it actually cuts.
+    /// The bucket height is half the mean height span of a triangle (at least the mesh
+    /// height / [`MAX_BUCKETS`]), so a triangle sits in about three buckets and a
+    /// section visits about 1.5 times the triangles it actually cuts (the others are
+    /// rejected by their stored height range without touching the mesh).
     pub fn rebuild(&mut self, mesh: &TriMesh, y_min: f64, y_max: f64) {
         if self.topology != mesh.triangles {
             self.rebuild_neighbours(&mesh.triangles);
@@ -79,7 +92,7 @@ impl LevelIndex {
             self.ranges.push(r);
         }
         let mean_span = span_sum / mesh.triangles.len().max(1) as f64;
-        let bucket_h = mean_span
+        let bucket_h = (0.5 * mean_span)
             .max(height / MAX_BUCKETS as f64)
             .max(f64::MIN_POSITIVE);
         let n_buckets = ((height / bucket_h).ceil() as usize).clamp(1, MAX_BUCKETS);
@@ -107,17 +120,23 @@ impl LevelIndex {
         }
         self.triangles.clear();
         self.triangles.resize(acc as usize, 0);
-        self.entry_ranges.clear();
-        self.entry_ranges.resize(acc as usize, [0.0; 2]);
+        self.entries.clear();
+        self.entries.resize(acc as usize, Entry::default());
         // Reuse counts as fill cursors.
         for (c, &o) in counts.iter_mut().zip(&self.offsets) {
             *c = o;
         }
         for (i, &(b0, b1)) in spans.iter().enumerate() {
             let (lo, hi) = self.ranges[i];
+            let entry = Entry {
+                triangle: i as u32,
+                vertices: mesh.triangles[i],
+                neighbours: self.neighbours[i],
+                y_range: [lo as f32, hi as f32],
+            };
             for c in &mut counts[b0 as usize..=b1 as usize] {
                 self.triangles[*c as usize] = i as u32;
-                self.entry_ranges[*c as usize] = [lo as f32, hi as f32];
+                self.entries[*c as usize] = entry;
                 *c += 1;
             }
         }
@@ -202,18 +221,20 @@ impl LevelIndex {
 
     /// Triangles that may cross height `y` (a superset of those that do).
     pub fn candidates(&self, y: f64) -> &[u32] {
-        self.candidates_with_ranges(y).0
+        &self.triangles[self.bucket_range(y)]
     }
 
-    /// As [`LevelIndex::candidates`], with each triangle's height range (single
-    /// precision: compare with [`RANGE_SLACK_M`]).
-    pub fn candidates_with_ranges(&self, y: f64) -> (&[u32], &[[f32; 2]]) {
+    /// As [`LevelIndex::candidates`], with each triangle's vertices and height range.
+    pub fn candidate_entries(&self, y: f64) -> &[Entry] {
+        &self.entries[self.bucket_range(y)]
+    }
+
+    fn bucket_range(&self, y: f64) -> std::ops::Range<usize> {
         if self.offsets.len() != self.n_buckets + 1 || self.n_buckets == 0 {
-            return (&[], &[]);
+            return 0..0;
         }
         let b = self.bucket(y);
-        let r = self.offsets[b] as usize..self.offsets[b + 1] as usize;
-        (&self.triangles[r.clone()], &self.entry_ranges[r])
+        self.offsets[b] as usize..self.offsets[b + 1] as usize
     }
 }
 
@@ -257,13 +278,12 @@ pub struct HullStats {
 pub struct SectionScratch {
     /// Section segments (x, z) endpoints, in triangle order.
     segs: Vec<[DVec2; 2]>,
-    /// Triangle of each segment and the two triangle edges it crosses.
-    seg_tri: Vec<(u32, [u8; 2])>,
+    /// Triangle of each segment and the triangles across the two edges it crosses.
+    seg_tri: Vec<(u32, [u32; 2])>,
     /// Which ends of each segment it lists for hulls (each crossing point once).
     owned: Vec<[bool; 2]>,
-    /// Per mesh triangle: the segment it gave in the section numbered `stamp[t]`.
-    seg_of_tri: Vec<u32>,
-    stamp: Vec<u32>,
+    /// Per mesh triangle: (section number, the segment it gave in that section).
+    seg_of_tri: Vec<(u32, u32)>,
     epoch: u32,
     parent: Vec<u32>,
     /// Loop label of each segment, then segments grouped by loop.
@@ -302,16 +322,14 @@ impl SectionScratch {
     pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
         self.segs.clear();
         self.seg_tri.clear();
-        if self.stamp.len() != mesh.triangles.len() {
-            self.stamp.clear();
-            self.stamp.resize(mesh.triangles.len(), 0);
+        if self.seg_of_tri.len() != mesh.triangles.len() {
             self.seg_of_tri.clear();
-            self.seg_of_tri.resize(mesh.triangles.len(), 0);
+            self.seg_of_tri.resize(mesh.triangles.len(), (0, 0));
             self.epoch = 0;
         }
         self.epoch = self.epoch.wrapping_add(1);
         if self.epoch == 0 {
-            self.stamp.iter_mut().for_each(|s| *s = 0);
+            self.seg_of_tri.iter_mut().for_each(|s| s.0 = 0);
             self.epoch = 1;
         }
         let dist = |v: u32| {
@@ -322,15 +340,15 @@ impl SectionScratch {
                 d
             }
         };
-        let (candidates, ranges) = index.candidates_with_ranges(y);
-        for (&ti, r) in candidates.iter().zip(ranges) {
+        for entry in index.candidate_entries(y) {
+            let r = entry.y_range;
             if f64::from(r[0]) > y + RANGE_SLACK_M || f64::from(r[1]) < y - RANGE_SLACK_M {
                 continue;
             }
-            let t = mesh.triangles[ti as usize];
+            let (ti, t) = (entry.triangle, entry.vertices);
             let d = t.map(dist);
             let mut ends = [DVec2::ZERO; 2];
-            let mut edges = [0u8; 2];
+            let mut across = [NO_NEIGHBOUR; 2];
             let mut k = 0;
             for e in 0..3 {
                 let (a, b) = (e, (e + 1) % 3);
@@ -346,16 +364,15 @@ impl SectionScratch {
                     let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
                     let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
                     ends[k] = DVec2::new(p.x, p.z);
-                    edges[k] = e as u8;
+                    across[k] = entry.neighbours[e];
                     k += 1;
                 }
             }
             if k == 2 {
                 let s = self.segs.len() as u32;
                 self.segs.push(ends);
-                self.seg_tri.push((ti, edges));
-                self.stamp[ti as usize] = self.epoch;
-                self.seg_of_tri[ti as usize] = s;
+                self.seg_tri.push((ti, across));
+                self.seg_of_tri[ti as usize] = (self.epoch, s);
             }
         }
         // Union each segment with the segments of the triangles across its edges.
@@ -364,20 +381,19 @@ impl SectionScratch {
         self.parent.extend(0..n as u32);
         self.owned.clear();
         for s in 0..n {
-            let (t, edges) = self.seg_tri[s];
+            let (t, across) = self.seg_tri[s];
             let mut owned = [true; 2];
-            for (k, e) in edges.into_iter().enumerate() {
-                let nb = index
-                    .neighbours
-                    .get(t as usize)
-                    .map_or(NO_NEIGHBOUR, |n| n[e as usize]);
-                if nb == NO_NEIGHBOUR || self.stamp[nb as usize] != self.epoch {
+            for (k, nb) in across.into_iter().enumerate() {
+                if nb == NO_NEIGHBOUR {
+                    continue;
+                }
+                let (stamp, other) = self.seg_of_tri[nb as usize];
+                if stamp != self.epoch {
                     continue;
                 }
                 // The crossing point is shared with the neighbour: one of the two
                 // segments lists it for the hull.
                 owned[k] = nb > t;
-                let other = self.seg_of_tri[nb as usize];
                 let (ra, rb) = (
                     find(&mut self.parent, s as u32),
                     find(&mut self.parent, other),
