@@ -165,9 +165,9 @@ fn survey() {
             }
             (best.0, best.1)
         };
-        let (aw, ad) = leg(&avatar, lv.thigh_m);
-        let (tw, td) = leg(&true_mesh, lv.thigh_m);
-        eprintln!("   thighL y {:.3}: width {aw:6.1} vs {tw:6.1} ({:+5.1}), depth {ad:6.1} vs {td:6.1} ({:+5.1})", lv.thigh_m, aw - tw, ad - td);
+        let (aw, ad) = leg(&avatar, lv.thigh_left_m);
+        let (tw, td) = leg(&true_mesh, lv.thigh_left_m);
+        eprintln!("   thighL y {:.3}: width {aw:6.1} vs {tw:6.1} ({:+5.1}), depth {ad:6.1} vs {td:6.1} ({:+5.1})", lv.thigh_left_m, aw - tw, ad - td);
         eprintln!(
             "   levels avatar/truth: crotch {:.3}/{:.3} hip {:.3}/{:.3} waist {:.3}/{:.3} chest {:.3}/{:.3} armpit {:.3}/{:.3}",
             m.levels.crotch_m, lv.crotch_m, m.levels.hip_m, lv.hip_m, m.levels.waist_m, lv.waist_m, m.levels.chest_m, lv.chest_m, m.levels.armpit_m, lv.armpit_m

@@ -91,18 +91,20 @@ fn makehuman_body_has_plausible_adult_measurements() {
     assert!(asym < 0.02, "thighs differ by {:.2} %", asym * 100.0);
     // Levels in anatomical order, and the girths ordered as on any adult.
     let l = &m.levels;
-    assert!(l.thigh_m < l.crotch_m && l.crotch_m < l.hip_m && l.hip_m < l.waist_m);
-    assert!(l.waist_m < l.chest_m && l.chest_m < l.armpit_m);
+    assert!(l.thigh_left_m < l.crotch_m && l.crotch_m < l.hip_m && l.hip_m < l.waist_m);
+    assert!(l.waist_m < l.chest_m && l.chest_m <= l.armpit_m);
     assert!(m.waist_girth_mm < m.hip_girth_mm && m.waist_girth_mm < m.chest_girth_mm);
-    // The profile's least girth in the waist band is the waist.
+    // The waist is the least torso girth of the grid between crotch and chest (spec
+    // step 1 finds it, step 3 keeps it above the hip_girth_max level).
     let min_profile = m
         .torso_profile
         .iter()
+        .filter(|s| s.height_m <= l.chest_m)
         .map(|s| s.girth_mm)
         .fold(f64::INFINITY, f64::min);
     assert!(m.waist_girth_mm <= min_profile + 1e-9);
     // A girth read back at a reported level agrees with the reported value.
-    let axis_x = 0.0;
+    let axis_x = l.axis_x_m;
     let g = fitstation::measure::girth_at(&body, l.waist_m, LoopSelector::Torso { axis_x })
         .expect("waist");
     assert!((g * 1e3 - m.waist_girth_mm).abs() < 1e-6);
@@ -129,6 +131,7 @@ fn json_report_has_the_report_keys() {
         "hip_girth",
         "thigh_girth_left",
         "thigh_girth_right",
+        "hip_girth_max",
     ];
     want.sort();
     let mut got = keys.clone();
@@ -222,10 +225,10 @@ fn makehuman_women_and_men_of_every_build_measure_plausibly() {
             assert!((0.42..0.52).contains(&(l.crotch_m / s)), "{what}");
             assert!((0.70..0.80).contains(&(l.armpit_m / s)), "{what}");
             assert!(
-                l.thigh_m < l.crotch_m && l.crotch_m < l.hip_m && l.hip_m < l.waist_m,
+                l.thigh_left_m < l.crotch_m && l.crotch_m < l.hip_m && l.hip_m < l.waist_m,
                 "{what}"
             );
-            assert!(l.waist_m < l.chest_m && l.chest_m < l.armpit_m, "{what}");
+            assert!(l.waist_m < l.chest_m && l.chest_m <= l.armpit_m, "{what}");
             assert!(
                 m.waist_girth_mm < m.chest_girth_mm && m.waist_girth_mm < m.hip_girth_mm,
                 "{what}"

@@ -1,6 +1,7 @@
-//! Girths and levels on analytic shapes with known answers: circular and elliptic
-//! cylinders, a prism with a concave notch the tape must bridge, and a "stick body" of
-//! stacked elliptic cylinders whose crotch, armpit and every girth are known.
+//! Girths and levels on analytic shapes with known answers (the checks of
+//! `shared/spec/measurements.md`): circular and elliptic cylinders, a prism with a
+//! concave notch the tape must bridge, and "stick bodies" of stacked elliptic cylinders
+//! whose crotch, armpit and every girth are known.
 
 use fitstation::measure::{girth_at, measure, BodySide, LoopSelector, MeasureError, Measurer};
 use fitstation::mesh::section::{slice, Plane};
@@ -197,17 +198,30 @@ fn stick_body_levels_and_girths_are_the_analytic_ones() {
         lv.waist_m
     );
     assert!(
-        lv.chest_m > b.waist_top && lv.chest_m < b.armpit,
+        lv.chest_m > b.waist_top && lv.chest_m <= lv.armpit_m,
         "chest level {}",
         lv.chest_m
     );
-    assert!(lv.thigh_m < b.crotch);
-    // Profile: ~1 cm apart, upward, inside [crotch, armpit], each sample the girth of
+    for y in [lv.thigh_left_m, lv.thigh_right_m] {
+        assert!(
+            y >= b.crotch - 0.0801 && y <= b.crotch - 0.0099,
+            "thigh level {y}"
+        );
+    }
+    // hip_girth_max: the largest torso girth below the waist is the hip segment's.
+    check("hip max", m.hip_girth_max_mm, ramanujan(b.hip.0, b.hip.1));
+    assert!(lv.hip_girth_max_m >= lv.crotch_m && lv.hip_girth_max_m < b.hip_top);
+    // Profile: the 2 mm grid from the crotch, then the armpit; each sample the girth of
     // the segment at its height.
     let p = &m.torso_profile;
-    assert_eq!(p.len(), 50);
-    for w in p.windows(2) {
-        assert!((w[1].height_m - w[0].height_m - 0.01).abs() < 1e-4);
+    assert_eq!(
+        p.len(),
+        ((lv.armpit_m - lv.crotch_m) / 0.002).ceil() as usize + 1
+    );
+    assert_eq!(p[0].height_m, lv.crotch_m);
+    assert_eq!(p[p.len() - 1].height_m, lv.armpit_m);
+    for w in p[..p.len() - 1].windows(2) {
+        assert!((w[1].height_m - w[0].height_m - 0.002).abs() < 1e-9);
     }
     for s in p {
         let ab = if s.height_m < b.hip_top {
@@ -231,6 +245,23 @@ fn measurements_follow_rigid_shifts_and_scale() {
     assert!((m.chest_girth_mm - base.chest_girth_mm).abs() < 1e-6);
     assert!((m.thigh_girth_left_mm - base.thigh_girth_left_mm).abs() < 1e-6);
     assert!((m.levels.crotch_m - base.levels.crotch_m).abs() < 1e-9);
+    assert!((m.levels.axis_x_m - base.levels.axis_x_m - 0.31).abs() < 1e-9);
+    // Heights count from the mesh's own lowest point: a body floating 5 cm up measures
+    // the same, its levels 5 cm higher.
+    let mut lifted = b.mesh.clone();
+    lifted.map_positions(|p| p + DVec3::new(0.0, 0.05, 0.0));
+    let m = measure(&lifted).expect("lifted body");
+    for (got, want) in [
+        (m.stature_mm, base.stature_mm),
+        (m.chest_girth_mm, base.chest_girth_mm),
+        (m.waist_girth_mm, base.waist_girth_mm),
+        (m.hip_girth_mm, base.hip_girth_mm),
+        (m.thigh_girth_left_mm, base.thigh_girth_left_mm),
+    ] {
+        assert!((got - want).abs() < 1e-6, "{got} vs {want}");
+    }
+    assert!((m.levels.crotch_m - base.levels.crotch_m - 0.05).abs() < 1e-6);
+    assert!((m.levels.armpit_m - base.levels.armpit_m - 0.05).abs() < 1e-6);
     let s = 1.1;
     let mut scaled = b.mesh.clone();
     scaled.map_positions(|p| p * s);
@@ -314,18 +345,18 @@ fn chest_with_arm_tabs(a: f64, b: f64, tab_half_z: f64, tab_x: f64) -> Vec<(f64,
 }
 
 #[test]
-fn arm_touching_the_chest_is_cut_off_at_the_armpit() {
-    // The lower chest (7 cm above the waist segment) is one loop with the arms pressed
-    // to its sides, out to |x| = 0.24 m; the arms are free again higher up, so the
-    // armpit is still found where the shoulders join them.
+fn arms_pressed_to_the_chest_are_inside_the_tape() {
+    // The lower chest (7 cm above the waist segment, inside the chest band) is one loop
+    // with the arms pressed to its sides, out to |x| = 0.24 m; the arms are free again
+    // higher up, so the armpit is still found where the shoulders join them. The spec
+    // does not cut arms off: the chest girth is the largest torso girth in the band,
+    // here the hull round the pressed arms.
     let b = stick_body(true, 0.04);
     let (tab_half_z, tab_x) = (0.03, 0.24);
     let profile = chest_with_arm_tabs(b.chest.0, b.chest.1, tab_half_z, tab_x);
     let tabbed = shapes::profile_prism(&profile, 0.07, 2);
-    // Replace the chest segment's lower part: cut the body there and add the tabbed prism.
-    let mut body = stick_body(true, 0.04);
+    let mut body = TriMesh::default();
     let lower_top = b.waist_top + 0.07;
-    body.mesh = TriMesh::default();
     for part in split_parts(&b.mesh) {
         let lo = part
             .positions
@@ -334,49 +365,31 @@ fn arm_touching_the_chest_is_cut_off_at_the_armpit() {
             .fold(f64::INFINITY, f64::min);
         if (lo - b.waist_top).abs() < 1e-9 {
             let (m, o) = ellipse_prism(b.chest.0, b.chest.1, lower_top, b.armpit, 0.0);
-            add(&mut body.mesh, m, o);
+            add(&mut body, m, o);
         } else {
-            add(&mut body.mesh, part, DVec3::ZERO);
+            add(&mut body, part, DVec3::ZERO);
         }
     }
-    add(&mut body.mesh, tabbed, DVec3::new(0.0, b.waist_top, 0.0));
-    let m = measure(&body.mesh).expect("body with touching arms");
+    add(&mut body, tabbed, DVec3::new(0.0, b.waist_top, 0.0));
+    let m = measure(&body).expect("body with touching arms");
     assert!(
         (m.levels.armpit_m - b.armpit).abs() < 1e-3,
         "armpit {}",
         m.levels.armpit_m
     );
-    // The tape is cut at the armpit x positions (+-a) widened by the margin: the hull
-    // of the profile polygon clipped to |x| <= cut.
-    let cut = b.chest.0 + fitstation::measure::ARM_CUT_MARGIN_M;
-    let mut pts: Vec<glam::DVec2> = Vec::new();
-    for i in 0..profile.len() {
-        let (p, q) = (profile[i], profile[(i + 1) % profile.len()]);
-        let (p, q) = (glam::DVec2::new(p.0, p.1), glam::DVec2::new(q.0, q.1));
-        if p.x.abs() <= cut {
-            pts.push(p);
-        }
-        // Where the edge crosses x = +-cut.
-        for c in [-cut, cut] {
-            if (p.x - c) * (q.x - c) < 0.0 {
-                pts.push(p + (q - p) * ((c - p.x) / (q.x - p.x)));
-            }
-        }
-    }
+    let pts: Vec<glam::DVec2> = profile
+        .iter()
+        .map(|&(x, z)| glam::DVec2::new(x, z))
+        .collect();
     let want = fitstation::mesh::section::hull_perimeter(&pts) * 1e3;
+    check_close("chest", m.chest_girth_mm, want);
     assert!(
-        (m.chest_girth_mm - want).abs() < 0.5,
-        "chest {} mm vs {want} mm",
-        m.chest_girth_mm
+        m.levels.chest_m > b.waist_top && m.levels.chest_m < lower_top,
+        "chest level {}",
+        m.levels.chest_m
     );
-    // Without the cut the tape would run round the arms.
-    let whole = girth_at(
-        &body.mesh,
-        m.levels.chest_m,
-        LoopSelector::Torso { axis_x: 0.0 },
-    )
-    .expect("chest");
-    assert!(whole * 1e3 > want + 100.0, "uncut {whole}");
+    // Far larger than the free chest above it.
+    assert!(want > ramanujan(b.chest.0, b.chest.1) * 1e3 + 100.0);
 }
 
 /// Splits a mesh made by [`add`] into its connected parts (by shared vertices).
@@ -544,6 +557,7 @@ fn report_map_and_cli_on_the_stick_body() {
         [
             "chest_girth",
             "hip_girth",
+            "hip_girth_max",
             "stature",
             "thigh_girth_left",
             "thigh_girth_right",
@@ -574,4 +588,104 @@ fn report_map_and_cli_on_the_stick_body() {
     .expect_err("a cylinder is not a body");
     assert!(format!("{err:#}").contains("no crotch"), "{err:#}");
     std::fs::remove_dir_all(&dir).ok();
+}
+
+/// The stick body with the parts starting at height `lo` (within 1e-9) replaced by
+/// `parts` (semi-axes, y0, y1, x of each elliptic prism).
+fn replace_parts(b: &StickBody, lo: f64, parts: &[((f64, f64), f64, f64, f64)]) -> TriMesh {
+    let mut body = TriMesh::default();
+    for part in split_parts(&b.mesh) {
+        let part_lo = part
+            .positions
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::INFINITY, f64::min);
+        if (part_lo - lo).abs() > 1e-9 {
+            add(&mut body, part, DVec3::ZERO);
+        }
+    }
+    for &(ab, y0, y1, x) in parts {
+        let (m, o) = ellipse_prism(ab.0, ab.1, y0, y1, x);
+        add(&mut body, m, o);
+    }
+    body
+}
+
+#[test]
+fn thigh_is_the_fullest_girth_1_to_8_cm_below_the_crotch() {
+    // Each leg: radius 8 cm, a bulge of 9 cm from 6.5 to 7.5 cm below the crotch (the
+    // fullest part inside the band) and a larger one of 9.5 cm from 9 to 10 cm below
+    // (outside the band: not the thigh). A fixed level (say 3 % of the stature, 5.25 cm
+    // below) or the band's top would read 8 cm; ignoring the band, 9.5 cm.
+    let b = stick_body(true, 0.04);
+    let c = b.crotch;
+    let r = b.leg_r;
+    let mut legs = Vec::new();
+    for side in [-1.0, 1.0] {
+        let x = side * (r + 0.02);
+        for (radius, y0, y1) in [
+            (r, 0.0, c - 0.10),
+            (0.095, c - 0.10, c - 0.09),
+            (r, c - 0.09, c - 0.075),
+            (0.09, c - 0.075, c - 0.065),
+            (r, c - 0.065, c),
+        ] {
+            legs.push(((radius, radius), y0, y1, x));
+        }
+    }
+    let body = replace_parts(&b, 0.0, &legs);
+    let m = measure(&body).expect("body with bulging thighs");
+    assert!(
+        (m.levels.crotch_m - c).abs() < 1e-3,
+        "crotch {}",
+        m.levels.crotch_m
+    );
+    for (g, y) in [
+        (m.thigh_girth_left_mm, m.levels.thigh_left_m),
+        (m.thigh_girth_right_mm, m.levels.thigh_right_m),
+    ] {
+        check_close("thigh", g, 2e3 * PI * 0.09);
+        assert!(y > c - 0.075 && y < c - 0.065, "thigh level {y}");
+    }
+}
+
+#[test]
+fn hip_is_the_furthest_back_level_and_hip_girth_max_the_widest() {
+    // The hip segment now starts with 3 cm of "thigh tops" (wide, shallow: the widest
+    // torso section below the waist, as above the crotch in an A-pose), then the
+    // buttocks (deeper: they reach furthest back).
+    let b = stick_body(true, 0.04);
+    let (tops, seat) = ((0.19, 0.11), b.hip);
+    let split = b.crotch + 0.03;
+    let body = replace_parts(
+        &b,
+        b.crotch,
+        &[(tops, b.crotch, split, 0.0), (seat, split, b.hip_top, 0.0)],
+    );
+    let m = measure(&body).expect("body with thigh tops");
+    let lv = &m.levels;
+    check_close("hip", m.hip_girth_mm, ramanujan(seat.0, seat.1) * 1e3);
+    assert!(
+        lv.hip_m > split && lv.hip_m < b.hip_top,
+        "hip level {}",
+        lv.hip_m
+    );
+    check_close(
+        "hip_girth_max",
+        m.hip_girth_max_mm,
+        ramanujan(tops.0, tops.1) * 1e3,
+    );
+    assert!(
+        lv.hip_girth_max_m >= lv.crotch_m && lv.hip_girth_max_m < split,
+        "hip_girth_max level {}",
+        lv.hip_girth_max_m
+    );
+    assert!(m.hip_girth_max_mm > m.hip_girth_mm + 15.0);
+    // The waist is still the narrow segment above.
+    check_close(
+        "waist",
+        m.waist_girth_mm,
+        ramanujan(b.waist.0, b.waist.1) * 1e3,
+    );
+    assert!(lv.waist_m > b.hip_top && lv.waist_m < b.waist_top);
 }
