@@ -321,7 +321,11 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
             esc(&m.worst_subject)
         );
     }
-    s.push_str("</table><div class=\"grid\">");
+    s.push_str("</table>");
+    if let Some(w) = table.worst_girth() {
+        let _ = write!(s, "<p><b>{}</b></p>", esc(&w.describe()));
+    }
+    s.push_str("<div class=\"grid\">");
     for m in &summary {
         let _ = write!(
             s,

@@ -5,7 +5,12 @@
 //! [`crate::synth`]): per measurement the signed error (fitted - true), the surface
 //! distance from the fitted vertices to the true surface, mask IoU when the result holds
 //! masks, landmark errors when the report holds landmarks, and the stage timings the
-//! report carries. [`evaluate`] scores one result; [`EvalTable`] aggregates rows.
+//! report carries. [`evaluate`] scores one result; [`EvalTable`] aggregates rows: per
+//! measurement MAE, bias and worst error, and beside them the worst single girth error
+//! of the whole set ([`EvalTable::worst_girth`]), in the text table, the HTML report
+//! and the JSON. The true measurements are the truth's, computed by [`crate::measure`]
+//! after `shared/spec/measurements.md`; a truth folder written before the spec's
+//! rules holds values measured the old way (regenerate it with `fitstation synth`).
 //!
 //! # Conventions
 //! - Meshes in metres in the station frame; errors and distances in millimetres;
@@ -398,6 +403,29 @@ pub struct MeasurementSummary {
     pub median_pm_mm: Option<f64>,
 }
 
+/// The single tape-girth error of largest magnitude in a set of fits: which girth
+/// ([`crate::measure::GIRTH_KEYS`]; stature and the informational `hip_girth_max` are
+/// not girths a tape reports), whose, and by how much.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct WorstGirth {
+    pub name: String,
+    pub subject: String,
+    /// fitted - true, millimetres.
+    pub error_mm: f64,
+    pub true_mm: f64,
+    pub fitted_mm: f64,
+}
+
+impl WorstGirth {
+    /// One line for the text table and the HTML report.
+    pub fn describe(&self) -> String {
+        format!(
+            "worst single girth error of the set: {:+.1} mm ({}, subject {}: fitted {:.1} mm, true {:.1} mm)",
+            self.error_mm, self.name, self.subject, self.fitted_mm, self.true_mm
+        )
+    }
+}
+
 /// Rows and their summary.
 #[derive(Debug, Clone, Serialize, Default)]
 pub struct EvalTable {
@@ -445,6 +473,25 @@ impl EvalTable {
                 }
             })
             .collect()
+    }
+
+    /// The worst single girth error over every subject and tape girth of the set
+    /// (`None` when no row reports a girth).
+    pub fn worst_girth(&self) -> Option<WorstGirth> {
+        self.rows
+            .iter()
+            .flat_map(|r| r.measurements.iter().map(move |m| (r, m)))
+            .filter(|(_, m)| crate::measure::GIRTH_KEYS.contains(&m.name.as_str()))
+            .filter_map(|(r, m)| {
+                Some(WorstGirth {
+                    name: m.name.clone(),
+                    subject: r.subject.clone(),
+                    error_mm: m.error_mm?,
+                    true_mm: m.true_mm,
+                    fitted_mm: m.fitted_mm?,
+                })
+            })
+            .max_by(|a, b| a.error_mm.abs().total_cmp(&b.error_mm.abs()))
     }
 
     /// Per landmark of one source, over the rows that report it: mean 3-D distance,
@@ -495,6 +542,7 @@ impl EvalTable {
     /// The rows, their summary, stage timings and failures as JSON (`eval --json`).
     pub fn to_json(&self) -> serde_json::Value {
         serde_json::json!({ "rows": self.rows, "summary": self.summary(),
+            "worst_girth": self.worst_girth(),
             "timings_ms": self.timing_summary(), "failures": self.failures })
     }
 
@@ -559,6 +607,10 @@ impl EvalTable {
                 m.worst_error_mm,
                 m.worst_subject
             ));
+        }
+        if let Some(w) = self.worst_girth() {
+            s.push_str(&w.describe());
+            s.push('\n');
         }
         for source in LandmarkSource::ALL {
             let rows = self.landmark_summary(source);
@@ -870,16 +922,16 @@ fn progress(i: usize, n: usize, current: &Path) {
 mod tests {
     use super::*;
 
-    fn row(subject: &str, errors: &[(&str, f64)]) -> EvalRow {
+    fn row(subject: &str, errors: &[(&str, Option<f64>)]) -> EvalRow {
         EvalRow {
             subject: subject.into(),
             measurements: errors
                 .iter()
                 .map(|&(name, e)| MeasurementCompare {
                     name: name.into(),
-                    true_mm: 900.0,
-                    fitted_mm: Some(900.0 + e),
-                    error_mm: Some(e),
+                    true_mm: 800.0,
+                    fitted_mm: e.map(|e| 800.0 + e),
+                    error_mm: e,
                     pm_mm: Some(8.0),
                 })
                 .collect(),
@@ -897,13 +949,13 @@ mod tests {
     fn sets_side_by_side_shows_each_sets_mae_bias_and_worst() {
         let a = EvalTable {
             rows: vec![
-                row("subject_00", &[("chest_girth", 4.0), ("hip_girth", -2.0)]),
-                row("subject_01", &[("chest_girth", -10.0), ("hip_girth", 6.0)]),
+                row("subject_00", &[("chest_girth", Some(4.0)), ("hip_girth", Some(-2.0))]),
+                row("subject_01", &[("chest_girth", Some(-10.0)), ("hip_girth", Some(6.0))]),
             ],
             failures: vec!["subject_02: no frame".into()],
         };
         let b = EvalTable {
-            rows: vec![row("subject_00", &[("chest_girth", 30.0)])],
+            rows: vec![row("subject_00", &[("chest_girth", Some(30.0))])],
             failures: Vec::new(),
         };
         let t = sets_side_by_side(&[("library".into(), a), ("ansur".into(), b)]);
@@ -963,6 +1015,52 @@ mod tests {
         assert!(parse_set("nodir").is_err());
         assert!(parse_set(&format!("empty={}", dir.join("notes").display())).is_err());
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn worst_girth_is_the_largest_girth_error_of_the_set() {
+        let table = EvalTable {
+            rows: vec![
+                row(
+                    "a",
+                    &[
+                        ("chest_girth", Some(4.0)),
+                        ("waist_girth", Some(-9.5)),
+                        // Not tape girths: never the worst girth.
+                        ("stature", Some(40.0)),
+                        ("hip_girth_max", Some(-30.0)),
+                    ],
+                ),
+                row(
+                    "b",
+                    &[
+                        ("thigh_girth_left", Some(9.0)),
+                        ("hip_girth", None),
+                        ("thigh_girth_right", Some(-12.25)),
+                    ],
+                ),
+            ],
+            failures: Vec::new(),
+        };
+        let w = table.worst_girth().expect("a worst girth");
+        assert_eq!(
+            (w.name.as_str(), w.subject.as_str(), w.error_mm),
+            ("thigh_girth_right", "b", -12.25)
+        );
+        assert_eq!(w.fitted_mm, 800.0 - 12.25);
+        let text = table.to_text();
+        assert!(
+            text.contains(
+                "worst single girth error of the set: -12.2 mm (thigh_girth_right, subject b"
+            ),
+            "{text}"
+        );
+        let html = super::html::report(&table, &[]);
+        assert!(
+            html.contains("thigh_girth_right, subject b"),
+            "no worst girth in the HTML"
+        );
+        assert!(EvalTable::default().worst_girth().is_none());
     }
 
     #[test]
