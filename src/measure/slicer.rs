@@ -37,10 +37,9 @@ pub struct LevelIndex {
     bucket_h: f64,
     n_buckets: usize,
     offsets: Vec<u32>,
-    triangles: Vec<u32>,
-    /// Each entry of `triangles` (same order) with its vertices and height range, so
-    /// that a section reads its bucket sequentially and rejects the triangles it does
-    /// not cross without fetching their vertices.
+    /// The bucket's triangles with their vertices and height ranges, so that a section
+    /// reads its bucket sequentially and rejects the triangles it does not cross
+    /// without fetching their vertices.
     entries: Vec<Entry>,
     counts: Vec<u32>,
     ranges: Vec<(f64, f64)>,
@@ -62,8 +61,6 @@ pub struct LevelIndex {
 pub struct Entry {
     pub triangle: u32,
     pub vertices: [u32; 3],
-    /// The triangle across each edge (vertices e, e+1), as in the neighbour table.
-    pub neighbours: [u32; 3],
     /// Lowest and highest y of the triangle, single precision (compare with
     /// [`RANGE_SLACK_M`]).
     pub y_range: [f32; 2],
@@ -118,8 +115,6 @@ impl LevelIndex {
             acc += c;
             self.offsets.push(acc);
         }
-        self.triangles.clear();
-        self.triangles.resize(acc as usize, 0);
         self.entries.clear();
         self.entries.resize(acc as usize, Entry::default());
         // Reuse counts as fill cursors.
@@ -131,11 +126,9 @@ impl LevelIndex {
             let entry = Entry {
                 triangle: i as u32,
                 vertices: mesh.triangles[i],
-                neighbours: self.neighbours[i],
                 y_range: [lo as f32, hi as f32],
             };
             for c in &mut counts[b0 as usize..=b1 as usize] {
-                self.triangles[*c as usize] = i as u32;
                 self.entries[*c as usize] = entry;
                 *c += 1;
             }
@@ -216,15 +209,11 @@ impl LevelIndex {
 
     /// Number of height buckets and of (bucket, triangle) entries.
     pub fn size(&self) -> (usize, usize) {
-        (self.n_buckets, self.triangles.len())
+        (self.n_buckets, self.entries.len())
     }
 
-    /// Triangles that may cross height `y` (a superset of those that do).
-    pub fn candidates(&self, y: f64) -> &[u32] {
-        &self.triangles[self.bucket_range(y)]
-    }
-
-    /// As [`LevelIndex::candidates`], with each triangle's vertices and height range.
+    /// Triangles that may cross height `y` (a superset of those that do), with their
+    /// vertices and height ranges.
     pub fn candidate_entries(&self, y: f64) -> &[Entry] {
         &self.entries[self.bucket_range(y)]
     }
@@ -364,7 +353,7 @@ impl SectionScratch {
                     let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
                     let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
                     ends[k] = DVec2::new(p.x, p.z);
-                    across[k] = entry.neighbours[e];
+                    across[k] = index.neighbours[ti as usize][e];
                     k += 1;
                 }
             }
@@ -579,7 +568,11 @@ mod tests {
         idx.rebuild(&m, -0.3, 0.3);
         for k in 0..97 {
             let y = -0.3 + 0.6 * (k as f64 + 0.37) / 97.0;
-            let cand = idx.candidates(y);
+            let cand: Vec<u32> = idx
+                .candidate_entries(y)
+                .iter()
+                .map(|e| e.triangle)
+                .collect();
             for (i, t) in m.triangles.iter().enumerate() {
                 let (lo, hi) = tri_y_range(&m, t);
                 if lo < y && hi > y {
