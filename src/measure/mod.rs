@@ -55,8 +55,12 @@
 //! A [`Measurer`] keeps the triangles' edge table (while the topology stays), a height
 //! index of the triangles and all section buffers between calls: each slice visits only
 //! the triangles near its level, and [`Measurer::measure_into`] allocates nothing once
-//! warm. The level scans only test loop extents; hulls are built where a rule needs
-//! them. The free [`measure`] and [`girth_at`] use one such `Measurer` per thread.
+//! warm. Torso questions (crotch scan, torso grid, band refinements) cut only the loops
+//! across the plane x = axis ([`slicer::SectionScratch::cut_across_x`]: the same loops,
+//! arms and hands skipped); the crotch scan skips, without slicing, the grid heights
+//! below the lowest triangle across that plane; the level scans only test loop extents
+//! and hulls are built where a rule needs them. The free [`measure`] and [`girth_at`]
+//! use one such `Measurer` per thread.
 
 pub mod cli;
 pub mod slicer;
@@ -398,6 +402,13 @@ impl Measurer {
         self.section.cut(mesh, &self.index, y);
     }
 
+    /// Cuts at `y` keeping only the loops across the plane x = `axis_x`: enough for
+    /// every torso question (a torso loop reaches to both sides of the axis), and
+    /// arms and hands are not cut.
+    fn cut_torso(&mut self, mesh: &TriMesh, y: f64, axis_x: f64) {
+        self.section.cut_across_x(mesh, &self.index, y, axis_x);
+    }
+
     /// Whether the last slice has a torso loop about x = `axis_x` (loop extents only).
     fn has_torso(&self, axis_x: f64) -> bool {
         let reach = TORSO_REACH_OF_STATURE * self.stature();
@@ -521,23 +532,22 @@ impl Measurer {
 
     /// The torso loop's hull at height `y`.
     fn torso_at(&mut self, mesh: &TriMesh, y: f64, axis_x: f64) -> Option<Sample> {
-        self.cut(mesh, y);
+        self.cut_torso(mesh, y, axis_x);
         self.torso(axis_x).map(|(_, hull)| Sample { y, hull })
     }
 
-    /// Bisects between a height where `pred` is false and one where it is true until
-    /// they are [`FINE_STEP_M`] apart; returns the true end.
+    /// Bisects between a height where `pred` (slicing itself) is false and one where it
+    /// is true until they are [`FINE_STEP_M`] apart; returns the true end.
     fn bisect(
         &mut self,
-        mesh: &TriMesh,
+        _mesh: &TriMesh,
         mut no: f64,
         mut yes: f64,
-        mut pred: impl FnMut(&mut Self) -> bool,
+        mut pred: impl FnMut(&mut Self, f64) -> bool,
     ) -> f64 {
         while (yes - no).abs() > FINE_STEP_M + HEIGHT_EPS_M {
             let mid = 0.5 * (no + yes);
-            self.cut(mesh, mid);
-            if pred(self) {
+            if pred(self, mid) {
                 yes = mid;
             } else {
                 no = mid;
@@ -580,12 +590,15 @@ impl Measurer {
             .clamp(0.0, n as f64) as usize;
         for k in first..=n {
             let y = bottom + k as f64 * GRID_STEP_M;
-            self.cut(mesh, y);
+            self.cut_torso(mesh, y, axis_x);
             if self.has_torso(axis_x) {
                 if k == 0 {
                     break;
                 }
-                return Ok(self.bisect(mesh, y - GRID_STEP_M, y, |m| m.has_torso(axis_x)));
+                return Ok(self.bisect(mesh, y - GRID_STEP_M, y, |m, y| {
+                    m.cut_torso(mesh, y, axis_x);
+                    m.has_torso(axis_x)
+                }));
             }
         }
         Err(MeasureError::NoCrotch {
@@ -608,7 +621,10 @@ impl Measurer {
                 if k == 0 {
                     return Ok(y);
                 }
-                return Ok(self.bisect(mesh, y + GRID_STEP_M, y, |m| m.arms_apart(axis_x)));
+                return Ok(self.bisect(mesh, y + GRID_STEP_M, y, |m, y| {
+                    m.cut(mesh, y);
+                    m.arms_apart(axis_x)
+                }));
             }
         }
         Err(MeasureError::NoArmpit {

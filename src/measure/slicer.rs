@@ -64,6 +64,53 @@ pub struct Entry {
     /// Lowest and highest y of the triangle, single precision (compare with
     /// [`RANGE_SLACK_M`]).
     pub y_range: [f32; 2],
+    /// Lowest and highest x of the triangle, likewise.
+    pub x_range: [f32; 2],
+}
+
+impl Entry {
+    /// Whether the triangle may cross height `y` (false only when it certainly does not).
+    #[inline]
+    fn may_cross(&self, y: f64) -> bool {
+        let r = self.y_range;
+        f64::from(r[0]) <= y + RANGE_SLACK_M && f64::from(r[1]) >= y - RANGE_SLACK_M
+    }
+}
+
+/// The section segment of the triangle with vertices `t` at height `y`: its (x, z)
+/// ends and the triangle edges (e: vertices e, e+1) they lie on; `None` if it does not
+/// cross. Vertices within [`ON_PLANE_EPS_M`] of the plane count as above it, and each
+/// crossing point is interpolated from the edge's lower-indexed vertex, so both
+/// triangles that share an edge compute the bit-identical point.
+fn triangle_segment(mesh: &TriMesh, t: [u32; 3], y: f64) -> Option<([DVec2; 2], [u8; 2])> {
+    let d = t.map(|v| {
+        let d = mesh.positions[v as usize].y - y;
+        if d.abs() < ON_PLANE_EPS_M {
+            ON_PLANE_EPS_M
+        } else {
+            d
+        }
+    });
+    let mut ends = [DVec2::ZERO; 2];
+    let mut edges = [0u8; 2];
+    let mut k = 0;
+    for e in 0..3 {
+        let (a, b) = (e, (e + 1) % 3);
+        if (d[a] > 0.0) != (d[b] > 0.0) && k < 2 {
+            let (lo, hi) = ordered(t[a], t[b]);
+            let (dl, dh) = if lo == t[a] {
+                (d[a], d[b])
+            } else {
+                (d[b], d[a])
+            };
+            let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
+            let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
+            ends[k] = DVec2::new(p.x, p.z);
+            edges[k] = e as u8;
+            k += 1;
+        }
+    }
+    (k == 2).then_some((ends, edges))
 }
 
 /// Marks a boundary edge in [`LevelIndex`]'s neighbour table.
@@ -123,10 +170,15 @@ impl LevelIndex {
         }
         for (i, &(b0, b1)) in spans.iter().enumerate() {
             let (lo, hi) = self.ranges[i];
+            let xs = mesh.triangles[i].map(|v| mesh.positions[v as usize].x);
             let entry = Entry {
                 triangle: i as u32,
                 vertices: mesh.triangles[i],
                 y_range: [lo as f32, hi as f32],
+                x_range: [
+                    xs[0].min(xs[1]).min(xs[2]) as f32,
+                    xs[0].max(xs[1]).max(xs[2]) as f32,
+                ],
             };
             for c in &mut counts[b0 as usize..=b1 as usize] {
                 self.entries[*c as usize] = entry;
@@ -275,6 +327,8 @@ pub struct SectionScratch {
     seg_of_tri: Vec<(u32, u32)>,
     epoch: u32,
     parent: Vec<u32>,
+    /// Segments still to grow from in [`SectionScratch::cut_across_x`].
+    stack: Vec<u32>,
     /// Loop label of each segment, then segments grouped by loop.
     label: Vec<u32>,
     grouped: Vec<u32>,
@@ -305,10 +359,8 @@ fn ordered(a: u32, b: u32) -> (u32, u32) {
 }
 
 impl SectionScratch {
-    /// Cuts `mesh` at height `y` through the candidate triangles of `index` (built
-    /// for this mesh) and splits the cut into loops: segments of triangles that share
-    /// a crossed edge belong to the same loop.
-    pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
+    /// Starts a new section: no segments, a new stamp for "this triangle's segment".
+    fn begin(&mut self, mesh: &TriMesh) {
         self.segs.clear();
         self.seg_tri.clear();
         if self.seg_of_tri.len() != mesh.triangles.len() {
@@ -321,49 +373,81 @@ impl SectionScratch {
             self.seg_of_tri.iter_mut().for_each(|s| s.0 = 0);
             self.epoch = 1;
         }
-        let dist = |v: u32| {
-            let d = mesh.positions[v as usize].y - y;
-            if d.abs() < ON_PLANE_EPS_M {
-                ON_PLANE_EPS_M
-            } else {
-                d
-            }
+    }
+
+    /// Adds the segment of triangle `ti` (if it crosses y) to the section; whether it did.
+    fn add_segment(&mut self, mesh: &TriMesh, index: &LevelIndex, ti: u32, y: f64) -> bool {
+        let t = mesh.triangles[ti as usize];
+        let Some((ends, edges)) = triangle_segment(mesh, t, y) else {
+            return false;
         };
+        let s = self.segs.len() as u32;
+        self.segs.push(ends);
+        let nb = index.neighbours[ti as usize];
+        self.seg_tri
+            .push((ti, [nb[edges[0] as usize], nb[edges[1] as usize]]));
+        self.seg_of_tri[ti as usize] = (self.epoch, s);
+        true
+    }
+
+    fn visited(&self, ti: u32) -> bool {
+        self.seg_of_tri[ti as usize].0 == self.epoch
+    }
+
+    /// Cuts `mesh` at height `y` through the candidate triangles of `index` (built
+    /// for this mesh) and splits the cut into loops: segments of triangles that share
+    /// a crossed edge belong to the same loop.
+    pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
+        self.begin(mesh);
         for entry in index.candidate_entries(y) {
-            let r = entry.y_range;
-            if f64::from(r[0]) > y + RANGE_SLACK_M || f64::from(r[1]) < y - RANGE_SLACK_M {
-                continue;
-            }
-            let (ti, t) = (entry.triangle, entry.vertices);
-            let d = t.map(dist);
-            let mut ends = [DVec2::ZERO; 2];
-            let mut across = [NO_NEIGHBOUR; 2];
-            let mut k = 0;
-            for e in 0..3 {
-                let (a, b) = (e, (e + 1) % 3);
-                if (d[a] > 0.0) != (d[b] > 0.0) && k < 2 {
-                    // Interpolate from the lower-indexed vertex so both triangles that
-                    // share the edge compute the bit-identical point.
-                    let (lo, hi) = ordered(t[a], t[b]);
-                    let (dl, dh) = if lo == t[a] {
-                        (d[a], d[b])
-                    } else {
-                        (d[b], d[a])
-                    };
-                    let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
-                    let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
-                    ends[k] = DVec2::new(p.x, p.z);
-                    across[k] = index.neighbours[ti as usize][e];
-                    k += 1;
-                }
-            }
-            if k == 2 {
-                let s = self.segs.len() as u32;
-                self.segs.push(ends);
-                self.seg_tri.push((ti, across));
-                self.seg_of_tri[ti as usize] = (self.epoch, s);
+            if entry.may_cross(y) {
+                self.add_segment(mesh, index, entry.triangle, y);
             }
         }
+        self.split_into_loops();
+    }
+
+    /// As [`SectionScratch::cut`], keeping only the loops that cross the vertical plane
+    /// x = `axis_x`: a loop reaching to both sides of the axis has a segment whose
+    /// triangle spans the axis, and the loop is grown from there across crossed edges,
+    /// so every such loop comes out exactly as the full cut gives it, and loops away
+    /// from the axis (arms, hands) are never cut.
+    pub fn cut_across_x(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64, axis_x: f64) {
+        self.begin(mesh);
+        let mut stack = std::mem::take(&mut self.stack);
+        for entry in index.candidate_entries(y) {
+            if !entry.may_cross(y) || self.visited(entry.triangle) {
+                continue;
+            }
+            let r = entry.x_range;
+            if f64::from(r[0]) > axis_x + RANGE_SLACK_M || f64::from(r[1]) < axis_x - RANGE_SLACK_M
+            {
+                continue;
+            }
+            if !self.add_segment(mesh, index, entry.triangle, y) {
+                continue;
+            }
+            stack.clear();
+            stack.push(self.segs.len() as u32 - 1);
+            while let Some(s) = stack.pop() {
+                // Every triangle sharing a crossed edge crosses the plane too; the
+                // neighbour table links all of them (a cycle at a non-manifold edge).
+                for nb in self.seg_tri[s as usize].1 {
+                    if nb != NO_NEIGHBOUR
+                        && !self.visited(nb)
+                        && self.add_segment(mesh, index, nb, y)
+                    {
+                        stack.push(self.segs.len() as u32 - 1);
+                    }
+                }
+            }
+        }
+        self.stack = stack;
+        self.split_into_loops();
+    }
+
+    /// Unions the segments of the section into loops and labels them.
+    fn split_into_loops(&mut self) {
         // Union each segment with the segments of the triangles across its edges.
         let n = self.segs.len();
         self.parent.clear();
@@ -656,5 +740,36 @@ mod tests {
         let h = hull_stats(&mut sq, &mut hull).expect("square");
         assert!((h.centroid_x - c.x).abs() < 1e-9 && (h.centroid_z - c.y).abs() < 1e-9);
         assert!((h.perimeter_m - 0.8).abs() < 1e-12);
+    }
+
+    #[test]
+    fn cut_across_x_keeps_exactly_the_loops_across_the_plane() {
+        // A wide "torso" about x = 0 and two "arms" beside it.
+        let mut m = shapes::elliptic_cylinder(0.15, 0.1, 1.0, 7, 48);
+        for x in [-0.3, 0.3] {
+            let arm = shapes::elliptic_cylinder(0.04, 0.04, 1.0, 5, 24);
+            let off = m.positions.len() as u32;
+            m.positions
+                .extend(arm.positions.iter().map(|p| *p + DVec3::new(x, 0.0, 0.0)));
+            m.triangles
+                .extend(arm.triangles.iter().map(|t| t.map(|v| v + off)));
+        }
+        let mut idx = LevelIndex::default();
+        idx.rebuild(&m, 0.0, 1.0);
+        let (mut full, mut across) = (SectionScratch::default(), SectionScratch::default());
+        for y in [0.05, 0.3337, 0.5, 0.91] {
+            full.cut(&m, &idx, y);
+            across.cut_across_x(&m, &idx, y, 0.0);
+            assert_eq!(full.loops().len(), 3);
+            assert_eq!(across.loops().len(), 1);
+            let torso = (0..3)
+                .find(|&i| full.loops()[i].x_min < 0.0 && full.loops()[i].x_max > 0.0)
+                .expect("torso loop");
+            assert_eq!(across.loop_hull(0), full.loop_hull(torso));
+            // An axis through an arm keeps that arm only.
+            across.cut_across_x(&m, &idx, y, 0.31);
+            assert_eq!(across.loops().len(), 1);
+            assert!((across.loops()[0].x_min - 0.26).abs() < 1e-9);
+        }
     }
 }
