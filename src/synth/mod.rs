@@ -26,15 +26,32 @@
 //!   `fitstation synth-set --out /tmp/evalset --count 12` writes `subject_00` ..
 //!   `subject_11` from seeds 1000..1011, alternating female/male, builds spread over
 //!   the weight range; score fits with `fitstation eval /tmp/evalset/subject_*`.
+//!   These bodies come from the shape library the fit chooses its candidate from (the
+//!   regression set); two options make sets the library cannot make:
+//!   - `--population ansur`: each subject follows one real ANSUR II person
+//!     ([`ansur`], data in `../shared/data/ansur2`, `--ansur-dir` to move it; row drawn
+//!     from the seed, sexes alternating), the library body warped section-wise to the
+//!     person's stature, crotch height, chest/waist/buttock breadths and depths and
+//!     thigh circumference, plus local shape variation ([`ansur_body`]);
+//!     truth.json gains an `ansur` object (id, sex, values used).
+//!   - `--stance varied`: arms, elbows, legs and a turn of the whole body drawn per
+//!     subject, posed with a skinning that is not the fit's ([`stance`]); truth.json
+//!     gains a `stance` object, and its measurements are of the posed body.
+//!
+//!   The defaults (`--population library --stance rest`) render what earlier versions
+//!   rendered for the same seeds. Seeds 30000 and above are kept for final judgements.
 //!
 //! # Randomness
 //! Everything is drawn from [`rng::SplitMix64`] streams derived from the seed (subject,
 //! cameras, scene, film, per-frame noise and flicker), so a seed renders the same
 //! recording again (bit-exact on the same platform; libm may differ elsewhere).
 
+pub mod ansur;
+pub mod ansur_body;
 pub mod raster;
 pub mod rng;
 pub mod scene;
+pub mod stance;
 pub mod subject;
 
 use crate::camera::{Camera, Intrinsics, Rigid, StationCalibration, View};
@@ -361,6 +378,14 @@ pub struct Truth {
     pub fps: f64,
     pub frames: TruthFrames,
     pub per_frame: Vec<TruthFrame>,
+    /// The ANSUR II person the body follows (`--population ansur`): id, sex, the
+    /// values used (mm) and the drawn local shape. No personal field.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ansur: Option<ansur_body::AnsurSubject>,
+    /// The drawn stance (`--stance varied`); `mesh.obj` and the measurements are of the
+    /// posed, turned body.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub stance: Option<stance::Stance>,
 }
 
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
@@ -644,6 +669,8 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
                 with_subject: cfg.subject_frames,
             },
             per_frame,
+            ansur: cfg.subject.ansur.clone(),
+            stance: cfg.subject.stance.clone(),
         };
         let p = tdir.join("truth.json");
         let text =
@@ -861,6 +888,37 @@ pub struct SynthSetArgs {
     /// Height of the warp, fraction of stature (0.52 hips, 0.6 waist, 0.72 chest).
     #[arg(long, default_value_t = 0.6)]
     pub warp_at: f64,
+    /// Where the bodies come from: `library` (the fit's own shape library: the
+    /// regression set) or `ansur` (each subject one real ANSUR II person, a shape the
+    /// library cannot make).
+    #[arg(long, value_enum, default_value_t = Population::Library)]
+    pub population: Population,
+    /// `rest` (the library's A-pose) or `varied` (arms, elbows, legs and a turn of the
+    /// whole body drawn per subject).
+    #[arg(long, value_enum, default_value_t = StanceKind::Rest)]
+    pub stance: StanceKind,
+    /// Folder of the ANSUR II CSV files (default ../shared/data/ansur2 from the current
+    /// folder, else beside the source tree).
+    #[arg(long)]
+    pub ansur_dir: Option<PathBuf>,
+}
+
+/// Where the bodies of an evaluation set come from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Population {
+    /// The shape library's macro model (the fit's own candidates).
+    Library,
+    /// Real people: ANSUR II, the library body warped to each person.
+    Ansur,
+}
+
+/// The stance of an evaluation set's subjects.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StanceKind {
+    /// The library's rest A-pose.
+    Rest,
+    /// Drawn per subject (see [`stance`]).
+    Varied,
 }
 
 /// The subject of member `i` of an evaluation set: alternating genders, builds spread
@@ -875,11 +933,45 @@ pub fn set_member(first_seed: u64, i: usize, count: usize) -> SynthConfig {
     cfg
 }
 
+/// Member `i` of an ANSUR II evaluation set: seed `first_seed + i`, women at even `i`
+/// and men at odd, the person's row drawn from the seed, the library body nearest in
+/// gender, stature and build as the start ([`ansur_body::macro_params`]), the local
+/// shape drawn from the seed.
+pub fn ansur_member(table: &ansur::AnsurTable, first_seed: u64, i: usize) -> SynthConfig {
+    let seed = first_seed + i as u64;
+    let mut cfg = SynthConfig::from_seed(seed);
+    let sex = if i.is_multiple_of(2) {
+        ansur::Sex::Female
+    } else {
+        ansur::Sex::Male
+    };
+    let record = table.pick(seed, sex).clone();
+    cfg.subject.shape = ansur_body::macro_params(&record);
+    cfg.subject.ansur = Some(ansur_body::AnsurSubject {
+        record,
+        local: ansur_body::LocalShape::sample(seed),
+    });
+    cfg
+}
+
 /// Runs `fitstation synth-set`.
 pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
+    let table = match args.population {
+        Population::Library => None,
+        Population::Ansur => {
+            let dir = ansur::resolve_dir(args.ansur_dir.as_deref())?;
+            Some(ansur::AnsurTable::load(&dir)?)
+        }
+    };
     std::fs::create_dir_all(&args.out)?;
     for i in 0..args.count {
-        let mut cfg = set_member(args.first_seed, i, args.count);
+        let mut cfg = match &table {
+            None => set_member(args.first_seed, i, args.count),
+            Some(t) => ansur_member(t, args.first_seed, i),
+        };
+        if args.stance == StanceKind::Varied {
+            cfg.subject.stance = Some(stance::Stance::sample(cfg.seed));
+        }
         cfg.format = args.format;
         cfg.subject.pose = subject::LimbPose {
             arms_deg: args.arms_deg,

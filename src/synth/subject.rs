@@ -54,6 +54,15 @@ pub struct SubjectParams {
     /// height (none by default).
     #[serde(default, skip_serializing_if = "BodyWarp::is_none")]
     pub warp: BodyWarp,
+    /// A body following an ANSUR II person instead of the library's (`synth-set
+    /// --population ansur`; `shape` then holds the library body it starts from). Written
+    /// to truth.json as its own `ansur` object, not here.
+    #[serde(skip)]
+    pub ansur: Option<super::ansur_body::AnsurSubject>,
+    /// A varied stance (`synth-set --stance varied`), applied last; in truth.json as
+    /// `stance`.
+    #[serde(skip)]
+    pub stance: Option<super::stance::Stance>,
 }
 
 /// A smooth change of a body's proportions that no macro parameter makes: at heights
@@ -78,7 +87,7 @@ impl BodyWarp {
 
 /// The template's part of every vertex of `mesh`, which must be in the template's vertex
 /// order (`what` names the caller in the error).
-fn part_labels(
+pub(crate) fn part_labels(
     mesh: &TriMesh,
     template: &crate::body::Template,
     what: &str,
@@ -251,6 +260,8 @@ impl SubjectParams {
             stature_m: None,
             pose: LimbPose::default(),
             warp: BodyWarp::default(),
+            ansur: None,
+            stance: None,
         }
     }
 }
@@ -263,9 +274,29 @@ pub struct SubjectBody {
     pub source: String,
 }
 
-/// Builds the subject's body. THE switch between body sources.
+/// Builds the subject's body. THE switch between body sources: the shape library, or
+/// an ANSUR II person (`params.ansur`); then the varied stance if any.
 pub fn subject_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError> {
-    library_body(params)
+    let mut body = match &params.ansur {
+        None => library_body(params)?,
+        Some(a) => {
+            let lib = shape_library()?;
+            let built = super::ansur_body::build(lib, a)?;
+            SubjectBody {
+                mesh: built.mesh,
+                source: format!(
+                    "ANSUR II subject {} ({:?}): shape library body warped section-wise to the person's measurements, with local shape variation",
+                    a.record.subjectid, a.record.sex
+                ),
+            }
+        }
+    };
+    if let Some(stance) = &params.stance {
+        let lib = shape_library()?;
+        super::stance::apply(&mut body.mesh, lib.template(), stance)?;
+        body.source.push_str("; varied stance");
+    }
+    Ok(body)
 }
 
 /// The embedded shape library, loaded once per process (a synth-set renders many
@@ -407,6 +438,21 @@ pub fn template_landmarks(info: &crate::body::TemplateInfo) -> Landmarks {
     .collect()
 }
 
+/// The crotch found on the mesh alone: the lowest vertex near the midline between 0.3
+/// and 0.65 of the height (method.md step 1.2).
+pub(crate) fn crotch_point(mesh: &TriMesh) -> Option<DVec3> {
+    let b = mesh.bounds()?;
+    let h = b.size().y;
+    let mid_x = 0.5 * (b.min.x + b.max.x);
+    mesh.positions
+        .iter()
+        .filter(|p| {
+            (p.x - mid_x).abs() < 0.015 && p.y > b.min.y + 0.3 * h && p.y < b.min.y + 0.65 * h
+        })
+        .min_by(|a, b| a.y.total_cmp(&b.y))
+        .copied()
+}
+
 /// Landmarks found on the mesh geometry alone (no skeleton): `head_top` (highest vertex), `crotch`
 /// (lowest vertex near the midline, between the legs; method.md step 1.2),
 /// `left_armpit`/`right_armpit` (the highest height at which the arm's section is still
@@ -418,15 +464,7 @@ pub fn landmarks(mesh: &TriMesh) -> Landmarks {
     if let Some(top) = mesh.positions.iter().max_by(|a, b| a.y.total_cmp(&b.y)) {
         out.insert("head_top".into(), top.to_array());
     }
-    let mid_x = 0.5 * (b.min.x + b.max.x);
-    let crotch = mesh
-        .positions
-        .iter()
-        .filter(|p| {
-            (p.x - mid_x).abs() < 0.015 && p.y > b.min.y + 0.3 * h && p.y < b.min.y + 0.65 * h
-        })
-        .min_by(|a, b| a.y.total_cmp(&b.y));
-    if let Some(c) = crotch {
+    if let Some(c) = crotch_point(mesh) {
         out.insert("crotch".into(), c.to_array());
     }
     // Scan down from the shoulders: the first height at which an arm's section is
