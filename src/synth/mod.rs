@@ -860,7 +860,10 @@ fn print_summary(s: &SynthSummary) {
 }
 
 /// `fitstation synth-set`: a deterministic evaluation set of subjects across genders and
-/// builds (seeds `first-seed .. first-seed + count`).
+/// builds (seeds `first-seed .. first-seed + count`). Bodies from the fit's own shape
+/// library (default, the regression set) or following real ANSUR II people
+/// (`--population ansur`); in the rest A-pose or a stance drawn per subject (`--stance
+/// varied`). Seeds 30000 and above are kept unseen for final judgements.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SynthSetArgs {
     /// Folder receiving `subject_NN` recordings and their truth folders.
@@ -917,7 +920,8 @@ pub enum Population {
 pub enum StanceKind {
     /// The library's rest A-pose.
     Rest,
-    /// Drawn per subject (see [`stance`]).
+    /// Drawn per subject: arms -12..+10 deg at the shoulders, elbows bent 0..15 deg
+    /// (forearms forward), legs -3..+4 deg, the whole body turned up to 4 deg.
     Varied,
 }
 

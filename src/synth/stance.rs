@@ -394,6 +394,78 @@ mod tests {
         }
     }
 
+    /// At rest-ish angles (arms 6 degrees in, elbows bent fully) the arms stay apart
+    /// from the trunk in the front view: at every height from the crotch to 5 cm under
+    /// the armpits, the trunk's vertices end before the arm's begin, with a gap.
+    #[test]
+    fn arms_stay_apart_from_the_trunk_in_the_front_view() {
+        let Some(lib) = lib() else { return };
+        let t = lib.template();
+        let heavy = ShapeParams {
+            weight: 0.85,
+            ..ShapeParams::default()
+        };
+        for params in [ShapeParams::default(), heavy] {
+            let mut posed = lib.body(&params);
+            let stance = Stance {
+                arm_abduction_deg: [-6.0, -6.0],
+                elbow_flexion_deg: [15.0, 15.0],
+                leg_abduction_deg: 0.0,
+                yaw_deg: 0.0,
+            };
+            apply(&mut posed, t, &stance).expect("poses");
+            let labels = part_labels(&posed, t, "test").expect("labels");
+            let lm = &t.info.landmarks;
+            let k = posed.bounds().expect("b").size().y / t.info.stature_m;
+            let (lo, hi) = (lm.crotch_y * k, lm.armpit_y * k - 0.05);
+            let mut y = lo;
+            let mut smallest_gap = f64::INFINITY;
+            while y < hi {
+                for (side, arm) in [(1.0, Part::LeftArm), (-1.0, Part::RightArm)] {
+                    let band = |want: Part| {
+                        posed
+                            .positions
+                            .iter()
+                            .zip(&labels)
+                            .filter(move |(p, l)| **l == want && (p.y - y).abs() < 0.01)
+                            .map(move |(p, _)| p.x * side)
+                    };
+                    let trunk_out = band(Part::Torso).fold(f64::NEG_INFINITY, f64::max);
+                    let arm_in = band(arm).fold(f64::INFINITY, f64::min);
+                    if trunk_out.is_finite() && arm_in.is_finite() {
+                        smallest_gap = smallest_gap.min(arm_in - trunk_out);
+                    }
+                }
+                y += 0.02;
+            }
+            eprintln!(
+                "weight {}: smallest front-view gap {smallest_gap:.3} m",
+                params.weight
+            );
+            assert!(smallest_gap > 0.005, "{smallest_gap}");
+        }
+    }
+
+    /// The same seed makes the same body, with and without an ANSUR person.
+    #[test]
+    fn a_seed_makes_the_same_posed_body() {
+        use crate::synth::subject::{subject_body, SubjectParams};
+        let mut params = SubjectParams::sample(20011);
+        params.stance = Some(Stance::sample(20011));
+        let a = subject_body(&params).expect("body");
+        let b = subject_body(&params).expect("body");
+        assert_eq!(a.mesh.positions, b.mesh.positions);
+        let mut rest = params.clone();
+        rest.stance = None;
+        let r = subject_body(&rest).expect("body");
+        assert!(a
+            .mesh
+            .positions
+            .iter()
+            .zip(&r.mesh.positions)
+            .any(|(p, q)| (*p - *q).length() > 0.01));
+    }
+
     #[test]
     fn the_draw_is_deterministic_and_in_range() {
         for seed in 20000..20050 {
