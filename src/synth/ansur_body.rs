@@ -14,7 +14,8 @@
 //!    thigh circumference (fading out towards the knee and above the crotch).
 //! 4. [`warp_sections`]: at the chest, waist and buttock levels the trunk's breadth (x)
 //!    and depth (z) are scaled about the trunk's centre to the person's values,
-//!    independently per level, the scales blended smoothly in height between levels
+//!    independently per level (the chest's depth about a point nearer the back, so that
+//!    it grows mostly in front), the scales blended smoothly in height between levels
 //!    (zero slope at each level, so the level's section is scaled exactly). The arms are
 //!    moved rigidly by the trunk's widening at the armpits, so they are not warped into
 //!    the trunk.
@@ -35,6 +36,8 @@ use crate::mesh::section::{hull_perimeter, slice, Plane, SectionLoop};
 use crate::mesh::TriMesh;
 use glam::{DVec2, DVec3};
 
+/// Passes of thigh scaling and section warps (see [`build`]).
+const PASSES: usize = 2;
 /// Half-width of the blend between leg and trunk scaling about the crotch, metres.
 const LEG_BLEND_HALF_M: f64 = 0.05;
 /// Along the arm from the shoulder joint, where the arm starts to move rigidly and
@@ -49,6 +52,9 @@ const TRUNK_STRADDLE_M: f64 = 0.03;
 const THIGH_BAND_M: (f64, f64) = (0.01, 0.08);
 /// Above the crotch, the thigh scaling fades out over this height, metres.
 const THIGH_FADE_ABOVE_M: f64 = 0.06;
+/// Where the chest's depth is scaled about, as a fraction of its depth from the back
+/// (women, men): a woman's deeper chest is mostly bust, a man's rib cage.
+const CHEST_DEPTH_PIVOT: (f64, f64) = (0.25, 0.45);
 /// Bounds of the per-level and thigh scales (a guard against a body the library
 /// makes very differently from the person; ANSUR II's own spread stays well inside).
 const SCALE_RANGE: (f64, f64) = (0.6, 1.6);
@@ -187,14 +193,28 @@ pub fn build(lib: &ShapeLibrary, subject: &AnsurSubject) -> Result<AnsurBody, Su
     )?;
     let levels = Levels::new(&mesh, &anchors, r)?;
     add_local_shape(&mut mesh, &labels, &subject.local, &levels)?;
-    let thigh_scale = scale_thighs(
-        &mut mesh,
-        &labels,
-        &anchors,
-        levels.crotch,
-        r.thighcircumference * 1e-3,
-    )?;
-    let mut fits = warp_sections(&mut mesh, &labels, &anchors, &levels, r)?;
+    // Thighs and sections touch near the crotch (each fades into the other's zone), so
+    // a second, small pass corrects what the other one moved.
+    let mut thigh_scale = [1.0; 2];
+    let mut fits: Vec<LevelFit> = Vec::new();
+    for _ in 0..PASSES {
+        let k = scale_thighs(
+            &mut mesh,
+            &labels,
+            &anchors,
+            levels.crotch,
+            r.thighcircumference * 1e-3,
+        )?;
+        thigh_scale = [thigh_scale[0] * k[0], thigh_scale[1] * k[1]];
+        let pass = warp_sections(&mut mesh, &labels, &anchors, &levels, r)?;
+        if fits.is_empty() {
+            fits = pass;
+        } else {
+            for (f, p) in fits.iter_mut().zip(&pass) {
+                f.scale = [f.scale[0] * p.scale[0], f.scale[1] * p.scale[1]];
+            }
+        }
+    }
     recentre(&mut mesh, template)?;
     for f in fits.iter_mut() {
         let e = trunk_extent(&mesh, f.height_m).ok_or_else(|| {
@@ -436,7 +456,16 @@ pub fn trunk_breadth_depth(mesh: &TriMesh, y: f64) -> Option<(f64, f64)> {
     trunk_extent(mesh, y).map(|e| (e.breadth(), e.depth()))
 }
 
-/// Heights of the person's levels on the body after step 1, metres.
+/// Step of the scans for the chest and buttock levels, metres.
+const LEVEL_SCAN_STEP_M: f64 = 0.005;
+/// The chest level is searched this far under the armpits (from, to), metres.
+const CHEST_SEARCH_M: (f64, f64) = (0.16, 0.03);
+
+/// Heights of the levels on the body after step 1, metres: the person's navel height
+/// for the waist, the body's own chest prominence and buttock protrusion (the person's
+/// nipple and buttock heights are where their own extremes are; the library body's
+/// extremes are elsewhere, and warping the person's depth onto a height where the body
+/// has no prominence would draw a ledge).
 struct Levels {
     crotch: f64,
     buttock: f64,
@@ -462,10 +491,38 @@ impl Levels {
         let top = 0.5
             * (anchors.shoulder[0].on(&mesh.positions, s).y
                 + anchors.shoulder[1].on(&mesh.positions, s).y);
-        let buttock = (r.buttockheight * 1e-3).max(crotch + 0.03);
-        let waist = (r.waistheightomphalion * 1e-3).max(buttock + 0.06);
-        let chest = (r.chestheight * 1e-3).min(armpit - 0.03).max(waist + 0.06);
-        if !(chest < top - 0.03) {
+        // The body's own extremes: its chest (bust) prominence, the section reaching
+        // furthest forward under the armpits, and its buttock protrusion, the section reaching furthest
+        // back above the crotch; the navel (waist) at the person's height.
+        let scan = |lo: f64, hi: f64, key: &dyn Fn(&Extent) -> f64| {
+            let mut best: Option<(f64, f64)> = None;
+            let mut y = lo;
+            while y <= hi {
+                if let Some(e) = trunk_extent(mesh, y) {
+                    let k = key(&e);
+                    if best.is_none_or(|(_, b)| k > b) {
+                        best = Some((y, k));
+                    }
+                }
+                y += LEVEL_SCAN_STEP_M;
+            }
+            best.map(|(y, _)| y)
+        };
+        let chest = scan(armpit - CHEST_SEARCH_M.0, armpit - CHEST_SEARCH_M.1, &|e| {
+            e.z1
+        })
+        .unwrap_or(r.chestheight * 1e-3);
+        let buttock = scan(
+            crotch + 0.02,
+            (r.waistheightomphalion * 1e-3 - 0.06).max(crotch + 0.03),
+            &|e| -e.z0,
+        )
+        .unwrap_or(r.buttockheight * 1e-3)
+        .max(crotch + 0.03);
+        let waist = (r.waistheightomphalion * 1e-3)
+            .max(buttock + 0.06)
+            .min(chest - 0.06);
+        if !(chest < top - 0.03 && waist > buttock) {
             return Err(SubjectError::Invalid(format!(
                 "the levels do not fit the body (chest {chest:.3} m, shoulders {top:.3} m)"
             )));
@@ -691,10 +748,19 @@ fn warp_sections(
         let (tb, td) = (breadth_mm * 1e-3, depth_mm * 1e-3);
         let scale = DVec2::new(tb / e.breadth(), td / e.depth())
             .clamp(DVec2::splat(SCALE_RANGE.0), DVec2::splat(SCALE_RANGE.1));
+        // The chest deepens mostly in front (the bust) for women, about evenly for men.
+        let pivot = if name == "chest" {
+            match r.sex {
+                Sex::Female => CHEST_DEPTH_PIVOT.0,
+                Sex::Male => CHEST_DEPTH_PIVOT.1,
+            }
+        } else {
+            0.5
+        };
         knots.push(Knot {
             y,
             scale,
-            centre: e.centre(),
+            centre: DVec2::new(e.centre().x, e.z0 + pivot * e.depth()),
         });
         fits.push(LevelFit {
             name: name.into(),
@@ -840,6 +906,18 @@ mod tests {
                 );
                 assert!((bw - f.target_breadth_m).abs() < 0.004, "{f:?}");
                 assert!((dp - f.target_depth_m).abs() < 0.004, "{f:?}");
+            }
+            for side in [1.0, -1.0] {
+                let g = (0..=28)
+                    .filter_map(|k| side_loop(&body.mesh, crotch - 0.01 - 0.0025 * k as f64, side))
+                    .map(|(g, _)| g)
+                    .fold(0.0, f64::max);
+                eprintln!(
+                    "seed {seed} thigh {side}: {:.1}/{:.1} mm",
+                    g * 1e3,
+                    r.thighcircumference
+                );
+                assert!((g * 1e3 - r.thighcircumference).abs() < 10.0);
             }
             // Same topology as the library.
             assert_eq!(body.mesh.triangles, lib.template().mesh.triangles);
