@@ -10,6 +10,8 @@
 //! 2. [`add_local_shape`]: shape variation no macro setting makes, drawn from the seed:
 //!    a belly protrusion (front only), fuller or flatter buttocks (back only) and a few
 //!    smooth bumps and dents of up to 2 cm along the normal on the trunk and thighs.
+//!    For women, the chest depth the body lacks is added mostly as bust
+//!    ([`shape_bust`]).
 //! 3. [`scale_thighs`]: each thigh scaled radially about its own axis to the person's
 //!    thigh circumference (fading out towards the knee and above the crotch).
 //! 4. [`warp_sections`]: at the chest, waist and buttock levels the trunk's breadth (x)
@@ -55,6 +57,8 @@ const THIGH_FADE_ABOVE_M: f64 = 0.06;
 /// Where the chest's depth is scaled about, as a fraction of its depth from the back
 /// (women, men): a woman's deeper chest is mostly bust, a man's rib cage.
 const CHEST_DEPTH_PIVOT: (f64, f64) = (0.25, 0.45);
+/// Height spread of the bust lobes, metres.
+const BUST_SIGMA_M: f64 = 0.055;
 /// Bounds of the per-level and thigh scales (a guard against a body the library
 /// makes very differently from the person; ANSUR II's own spread stays well inside).
 const SCALE_RANGE: (f64, f64) = (0.6, 1.6);
@@ -195,6 +199,9 @@ pub fn build(lib: &ShapeLibrary, subject: &AnsurSubject) -> Result<AnsurBody, Su
     add_local_shape(&mut mesh, &labels, &subject.local, &levels)?;
     // Thighs and sections touch near the crotch (each fades into the other's zone), so
     // a second, small pass corrects what the other one moved.
+    if r.sex == Sex::Female {
+        shape_bust(&mut mesh, &labels, &levels, r.chestdepth * 1e-3)?;
+    }
     let mut thigh_scale = [1.0; 2];
     let mut fits: Vec<LevelFit> = Vec::new();
     for _ in 0..PASSES {
@@ -604,6 +611,38 @@ fn add_local_shape(
             d += normals[i] * b.amplitude_m * gauss((q - rest[c]).length(), b.sigma_m) * facing;
         }
         *p = q + d;
+    }
+    Ok(())
+}
+
+/// A woman's chest depth beyond the body's is mostly bust: before the section warps,
+/// the front of the chest is pushed forward in two breast-shaped Gaussian lobes (at
+/// 0.3 of the chest breadth either side of the centre, spread 0.18 of it sideways and
+/// [`BUST_SIGMA_M`] in height; half as much between them) by the front share
+/// (`1 - CHEST_DEPTH_PIVOT.0`) of the missing depth. The section warp then meets the
+/// target exactly.
+fn shape_bust(
+    mesh: &mut TriMesh,
+    labels: &[Part],
+    lv: &Levels,
+    target_depth_m: f64,
+) -> Result<(), SubjectError> {
+    let e = trunk_extent(mesh, lv.chest)
+        .ok_or_else(|| SubjectError::Invalid("no trunk at the chest".into()))?;
+    let missing = target_depth_m - e.depth();
+    if missing <= 0.0 {
+        return Ok(());
+    }
+    let lift = missing * (1.0 - CHEST_DEPTH_PIVOT.0);
+    let (c, b, half_depth) = (e.centre(), e.breadth(), 0.5 * e.depth());
+    let gauss = |d: f64, s: f64| (-0.5 * (d / s).powi(2)).exp();
+    for (p, l) in mesh.positions.iter_mut().zip(labels) {
+        if *l != Part::Torso {
+            continue;
+        }
+        let front = smoothstep((p.z - c.y) / (0.5 * half_depth));
+        let lobes = gauss(p.x - c.x - 0.3 * b, 0.18 * b) + gauss(p.x - c.x + 0.3 * b, 0.18 * b);
+        p.z += lift * lobes.min(1.0) * gauss(p.y - lv.chest, BUST_SIGMA_M) * front;
     }
     Ok(())
 }
