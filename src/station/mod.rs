@@ -11,6 +11,7 @@
 pub mod cli;
 pub mod output;
 pub mod pose_change;
+pub mod side_limbs;
 pub mod uncertainty;
 
 use crate::body::ShapeLibrary;
@@ -95,6 +96,8 @@ pub struct StationProcessor {
     pose: pose_change::PoseTracker,
     /// Reused silhouette buffers (masks, contours) of the per-frame path.
     silhouette_result: SilhouetteResult,
+    /// The side view's arms and hands from the person model, for the fit.
+    side_limbs: side_limbs::SideLimbs,
 }
 
 impl StationProcessor {
@@ -123,6 +126,7 @@ impl StationProcessor {
             landmark_windows: SmoothedPoints::default(),
             pose: Default::default(),
             silhouette_result: SilhouetteResult::empty(),
+            side_limbs: side_limbs::SideLimbs::load(),
         })
     }
 
@@ -241,7 +245,7 @@ impl StationProcessor {
             s.messages.extend(blocking);
             return s;
         }
-        let Some(obs) = observation(result, self.opts.stature_m) else {
+        let Some(mut obs) = observation(result, self.opts.stature_m) else {
             let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
             s.messages
                 .push("The landmarks could not be found in this frame.".into());
@@ -270,6 +274,22 @@ impl StationProcessor {
             notes.push("The pose changed: the body is chosen again on the held pose.".to_string());
         }
         let first = !self.fitter.has_subject();
+        if first {
+            self.side_limbs.reset();
+            notes.extend(self.side_limbs.unavailable.take());
+        }
+        // The side view's arms from the person model (run at a low rate, kept between).
+        let network_runs = self.side_limbs.due();
+        match self
+            .side_limbs
+            .update(&pair.side, &self.calib.side, result)
+        {
+            Ok(o) => obs.side_occluders = o,
+            Err(e) => notes.push(e),
+        }
+        if network_runs {
+            timer.lap("side_limbs");
+        }
         let fit = self
             .fitter
             .fit(&self.calib, front, side, &obs)
@@ -391,6 +411,7 @@ impl FrameProcessor for StationProcessor {
         self.last_fit = None;
         self.landmark_windows.clear();
         self.pose.clear();
+        self.side_limbs.reset();
     }
 }
 

@@ -87,8 +87,8 @@ pub fn level_of(key: &str, m: &Measurements) -> Option<(Region, f64)> {
         "chest_girth" => (Region::Torso, l.chest_m),
         "waist_girth" => (Region::Torso, l.waist_m),
         "hip_girth" => (Region::Torso, l.hip_m),
-        "thigh_girth_left" => (Region::LeftThigh, l.thigh_m),
-        "thigh_girth_right" => (Region::RightThigh, l.thigh_m),
+        "thigh_girth_left" => (Region::LeftThigh, l.thigh_left_m),
+        "thigh_girth_right" => (Region::RightThigh, l.thigh_right_m),
         _ => return None,
     })
 }
