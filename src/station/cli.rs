@@ -29,6 +29,10 @@ pub struct FitCliOptions {
     /// Print the report as JSON instead of a table.
     #[arg(long)]
     pub json: bool,
+    /// Do not run the learned pose model on the side view (arms told from the trunk by
+    /// shape alone).
+    #[arg(long)]
+    pub no_person_model: bool,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -49,6 +53,7 @@ impl FitCliOptions {
             o.stature_m = Some(mm / 1000.0);
         }
         o.fit.variant = self.correspondence;
+        o.person_model = !self.no_person_model;
         o.fit.decoder = match self.decoder {
             DecoderChoice::Fast => DecoderKind::FastGaussNewton,
             DecoderChoice::Paper => DecoderKind::PaperIterative,
@@ -558,6 +563,9 @@ pub struct EvalCmd {
     /// Correspondence of the fit: the paper's slice extremes or perspective rims.
     #[arg(long, value_enum, default_value = "perspective-rim")]
     pub correspondence: Variant,
+    /// Do not run the learned pose model on the side view.
+    #[arg(long)]
+    pub no_person_model: bool,
 }
 
 /// Runs `fitstation eval`.
@@ -590,6 +598,7 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
     }
     let mut opts = StationOptions::default();
     opts.fit.variant = cmd.correspondence;
+    opts.person_model = !cmd.no_person_model;
     let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
         let mut src = RecordingSource::open(rec)?;
         let calib = src.recording().calibration().clone();

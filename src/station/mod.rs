@@ -53,6 +53,9 @@ pub struct StationOptions {
     pub silhouette: SilhouetteOptions,
     /// Stability (mm, spread of the recent window) under which a girth counts as settled.
     pub settled_mm: f64,
+    /// Run the learned pose model on the side view to tell the arms from the trunk
+    /// ([`side_limbs`]); off, the fit tells them apart by shape alone.
+    pub person_model: bool,
 }
 
 impl Default for StationOptions {
@@ -63,6 +66,7 @@ impl Default for StationOptions {
             fit: FitOptions::default(),
             silhouette: SilhouetteOptions::default(),
             settled_mm: 2.0,
+            person_model: true,
         }
     }
 }
@@ -114,7 +118,6 @@ impl StationProcessor {
         Ok(StationProcessor {
             silhouettes: SilhouetteExecutor::new(&calib, opts.silhouette),
             calib,
-            opts,
             fitter,
             learned: 0,
             smoothed: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
@@ -126,7 +129,12 @@ impl StationProcessor {
             landmark_windows: SmoothedPoints::default(),
             pose: Default::default(),
             silhouette_result: SilhouetteResult::empty(),
-            side_limbs: side_limbs::SideLimbs::load(),
+            side_limbs: if opts.person_model {
+                side_limbs::SideLimbs::load()
+            } else {
+                side_limbs::SideLimbs::off()
+            },
+            opts,
         })
     }
 

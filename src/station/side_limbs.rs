@@ -164,6 +164,9 @@ impl SideLimbs {
             }
         }
         self.occluders = occ;
+        if crate::fit::debug_enabled() {
+            eprintln!("side limb capsules (y, z) m: {:?}", self.occluders);
+        }
         Ok(self.occluders)
     }
 }
