@@ -70,6 +70,17 @@ impl SideLimbs {
         }
     }
 
+    /// No network: the fit tells the side view's arms from the trunk by shape alone.
+    pub fn off() -> SideLimbs {
+        SideLimbs {
+            model: None,
+            out: PersonOutput::new(),
+            occluders: [None; MAX_SIDE_OCCLUDERS],
+            since: None,
+            unavailable: None,
+        }
+    }
+
     /// Forgets the subject's capsules (the next frame runs the network).
     pub fn reset(&mut self) {
         self.occluders = [None; MAX_SIDE_OCCLUDERS];
