@@ -949,8 +949,14 @@ mod tests {
     fn sets_side_by_side_shows_each_sets_mae_bias_and_worst() {
         let a = EvalTable {
             rows: vec![
-                row("subject_00", &[("chest_girth", Some(4.0)), ("hip_girth", Some(-2.0))]),
-                row("subject_01", &[("chest_girth", Some(-10.0)), ("hip_girth", Some(6.0))]),
+                row(
+                    "subject_00",
+                    &[("chest_girth", Some(4.0)), ("hip_girth", Some(-2.0))],
+                ),
+                row(
+                    "subject_01",
+                    &[("chest_girth", Some(-10.0)), ("hip_girth", Some(6.0))],
+                ),
             ],
             failures: vec!["subject_02: no frame".into()],
         };

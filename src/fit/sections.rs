@@ -365,8 +365,11 @@ impl SectionPlan {
         for (ci, chain) in self.chains.iter().enumerate() {
             let mut ds = std::mem::take(&mut scratch.deltas[ci]);
             let mut ev = std::mem::take(&mut scratch.evidence[ci]);
+            // The known limbs are the arms: they free the trunk's side outline; the
+            // thighs' own overlap in the side view keeps the smooth-trend test.
+            let limbs = if ci == CHAIN_TORSO_Z { occluders } else { &[] };
             self.chain_deltas(
-                chain, positions, set, targets, occluders, scratch, &mut ds, &mut ev,
+                chain, positions, set, targets, limbs, scratch, &mut ds, &mut ev,
             );
             scratch.deltas[ci] = ds;
             scratch.evidence[ci] = ev;

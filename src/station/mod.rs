@@ -288,10 +288,7 @@ impl StationProcessor {
         }
         // The side view's arms from the person model (run at a low rate, kept between).
         let network_runs = self.side_limbs.due();
-        match self
-            .side_limbs
-            .update(&pair.side, &self.calib.side, result)
-        {
+        match self.side_limbs.update(&pair.side, &self.calib.side, result) {
             Ok(o) => obs.side_occluders = o,
             Err(e) => notes.push(e),
         }

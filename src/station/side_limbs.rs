@@ -33,6 +33,10 @@ const MIN_PRESENCE: f32 = 0.5;
 const UPPER_ARM_RADIUS_M: f64 = 0.045;
 const FOREARM_RADIUS_M: f64 = 0.04;
 const HAND_RADIUS_M: f64 = 0.045;
+/// The fingers' reach beyond the network's hand point (on the index knuckle), as a
+/// share of the wrist-to-knuckle length (an adult's fingers are about as long as the
+/// palm).
+const FINGERS_BEYOND_KNUCKLES: f64 = 1.0;
 /// The x of an arm when the front view's landmarks do not give it, metres from the
 /// mark's centre line (an adult's forearm in an A-pose).
 const DEFAULT_ARM_X_M: f64 = 0.3;
@@ -141,7 +145,12 @@ impl SideLimbs {
         };
         let arms = [
             (
-                [kp::LEFT_SHOULDER, kp::LEFT_ELBOW, kp::LEFT_WRIST, LEFT_INDEX],
+                [
+                    kp::LEFT_SHOULDER,
+                    kp::LEFT_ELBOW,
+                    kp::LEFT_WRIST,
+                    LEFT_INDEX,
+                ],
                 arm_x(LandmarkName::ElbowLeft, LandmarkName::WristLeft, 1.0),
             ),
             (
@@ -166,6 +175,12 @@ impl SideLimbs {
             let radii = [UPPER_ARM_RADIUS_M, FOREARM_RADIUS_M, HAND_RADIUS_M];
             for (s, r) in radii.iter().enumerate() {
                 if let (Some(p), Some(q)) = (yz[s], yz[s + 1]) {
+                    // BlazePose's hand point sits on the knuckles: the fingers reach on.
+                    let q = if s == 2 {
+                        q + (q - p) * FINGERS_BEYOND_KNUCKLES
+                    } else {
+                        q
+                    };
                     occ[3 * a + s] = Some(SideOccluder {
                         a: p,
                         b: q,
@@ -177,6 +192,10 @@ impl SideLimbs {
         self.occluders = occ;
         if crate::fit::debug_enabled() {
             eprintln!("side limb capsules (y, z) m: {:?}", self.occluders);
+            let px: Vec<(usize, f32, f32)> = (11..23)
+                .filter_map(|i| self.out.keypoints.get(i).map(|k| (i, k.x, k.y)))
+                .collect();
+            eprintln!("side arm keypoints px: {px:?}; crop around {lo} .. {hi}");
         }
         Ok(self.occluders)
     }
