@@ -40,7 +40,7 @@ def resid_sd(y, *xs):
     return float(np.sqrt(np.mean(r * r)))
 
 print(f"ANSUR II: {len(data)} subjects")
-print(f"{'girth':8} {'shape sd':>9} {'depth sd':>9} {'breadth sd':>11}   (mm)")
+print(f"{'girth':8} {'shape sd':>9} {'depth sd':>9} {'breadth sd':>11}   (mm)   shape sd / mean girth")
 for name, circ, breadth, depth in [
     ("chest", "chestcircumference", "chestbreadth", "chestdepth"),
     ("waist", "waistcircumference", "waistbreadth", "waistdepth"),
@@ -50,6 +50,6 @@ for name, circ, breadth, depth in [
     shape = resid_sd(c, b, d, b * d, sex)
     dsd = resid_sd(d, b, stature, weight, sex)
     bsd = resid_sd(b, d, stature, weight, sex)
-    print(f"{name:8} {shape:9.1f} {dsd:9.1f} {bsd:11.1f}")
+    print(f"{name:8} {shape:9.1f} {dsd:9.1f} {bsd:11.1f}          {shape / c.mean():.4f}")
 t = col("thighcircumference")
 print(f"{'thigh':8} {resid_sd(t, stature, weight, sex, col('buttockcircumference')):9.1f}   (girth from stature, weight, sex and buttock girth: no thigh breadth or depth in ANSUR)")
