@@ -13,6 +13,7 @@ pub mod body;
 pub mod calibrate;
 pub mod camera;
 pub mod capture;
+pub mod cli;
 pub mod contour;
 pub mod deform;
 pub mod eval;

@@ -16,9 +16,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Replay a recording through the station; write avatar.obj and report.json.
-    Replay(fitstation::station::cli::ReplayArgs),
+    Replay(fitstation::cli::ReplayArgs),
     /// Fit one front and one side still; write avatar.obj and report.json.
-    Fit(fitstation::station::cli::FitArgs),
+    Fit(fitstation::cli::FitArgs),
     /// Landmarks, joints and frame verdicts from one front and one side image.
     Landmarks(fitstation::landmarks::cli::LandmarksArgs),
     /// Measure a body mesh: stature and tape girths (ISO 8559-1).
@@ -30,7 +30,7 @@ enum Command {
     /// Render a deterministic evaluation set of synthetic subjects.
     SynthSet(fitstation::synth::SynthSetArgs),
     /// Score fits of recordings against their ground truth.
-    Eval(fitstation::station::cli::EvalCmd),
+    Eval(fitstation::cli::EvalCmd),
     /// Time a pipeline stage on realistic inputs.
     Bench {
         #[command(subcommand)]
@@ -55,14 +55,14 @@ enum BenchCommand {
 fn main() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
-        Command::Replay(args) => fitstation::station::cli::run_replay(&args)?,
-        Command::Fit(args) => fitstation::station::cli::run_fit(&args)?,
+        Command::Replay(args) => fitstation::cli::run_replay(&args)?,
+        Command::Fit(args) => fitstation::cli::run_fit(&args)?,
         Command::Landmarks(args) => fitstation::landmarks::cli::run(args)?,
         Command::Measure(args) => fitstation::measure::run(args)?,
         Command::Templates(args) => fitstation::body::run(args)?,
         Command::Synth(args) => fitstation::synth::run(args)?,
         Command::SynthSet(args) => fitstation::synth::run_set(args)?,
-        Command::Eval(args) => fitstation::station::cli::run_eval(&args)?,
+        Command::Eval(args) => fitstation::cli::run_eval(&args)?,
         Command::Bench {
             what: BenchCommand::Deform(args),
         } => fitstation::deform::bench::run(args)?,

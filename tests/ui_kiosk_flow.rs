@@ -8,7 +8,7 @@
 use fitstation::app::flow::{FlowConfig, FlowState};
 use fitstation::app::session::{trace_kiosk, SessionSource};
 use fitstation::pipeline::FrameSource;
-use fitstation::station::cli::default_library;
+use fitstation::station::default_library;
 use fitstation::station::{StationOptions, StationProcessor, MEASUREMENT_KEYS};
 
 fn kind(s: &FlowState) -> &'static str {

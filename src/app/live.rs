@@ -135,7 +135,7 @@ impl FrameProcessor for FramesWithMessage {
 /// A factory of station processors (the shape library loaded once), each waiting
 /// `settle` pairs before learning the backdrop.
 pub fn station_factory(opts: StationOptions, settle: u64) -> anyhow::Result<ProcessorFactory> {
-    let library = crate::station::cli::default_library()?;
+    let library = crate::station::default_library()?;
     Ok(Box::new(move |cal: &StationCalibration| {
         StationProcessor::new(cal.clone(), library.clone(), opts.clone())
             .map(|p| Box::new(SettleFirst::new(p, settle)) as Box<dyn FrameProcessor>)

@@ -1809,7 +1809,7 @@ fn run_session_cli(args: &DemoUiArgs, rec: &Path) -> anyhow::Result<()> {
     if let Ok(r) = crate::recording::Recording::open(rec) {
         station.stature_m = r.metadata().stature_m;
     }
-    let library = crate::station::cli::default_library()?;
+    let library = crate::station::default_library()?;
     let processor = StationProcessor::new(cal, library, station.clone())?;
     let opts = AppOptions {
         title: format!("fitstation: kiosk session from {}", rec.display()),

@@ -8,7 +8,6 @@
 //!
 //! Units: metres in the station frame, millimetres for measurements, pixels for overlays.
 
-pub mod cli;
 pub mod output;
 pub mod pose_change;
 pub mod side_limbs;
@@ -541,4 +540,12 @@ fn avatar_outline(av: &TriMesh, cam: &crate::camera::Camera) -> Vec<DVec2> {
     let mut out: Vec<DVec2> = lo.into_iter().filter(|p| p.x < f64::MAX).collect();
     out.extend(hi.into_iter().rev().filter(|p| p.x > f64::MIN));
     out
+}
+
+/// Loads the default shape library (embedded in the binary).
+pub fn default_library() -> anyhow::Result<std::sync::Arc<crate::body::ShapeLibrary>> {
+    use anyhow::Context;
+    Ok(std::sync::Arc::new(
+        crate::body::ShapeLibrary::load_default().context("cannot load the shape library")?,
+    ))
 }

@@ -1,18 +1,16 @@
 //! `fitstation replay` and `fitstation fit`: run the station on a recording or on a pair
 //! of stills and write `avatar.obj` + `report.json` (`../shared/spec/formats.md`).
 
-use super::output::write_fit_outputs;
-use super::{StationOptions, StationProcessor, MEASUREMENT_KEYS};
-use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
 use crate::deform::DecoderKind;
 use crate::fit::correspond::Variant;
 use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, FrameSource, Phase, SourceError};
 use crate::recording::Recording;
+use crate::station::output::write_fit_outputs;
+use crate::station::{default_library, StationOptions, StationProcessor, MEASUREMENT_KEYS};
 use anyhow::{bail, Context};
 use std::path::{Path, PathBuf};
-use std::sync::Arc;
 
 /// Options shared by `replay` and `fit`.
 #[derive(Debug, Clone, clap::Args)]
@@ -323,13 +321,6 @@ fn round1(v: f64) -> f64 {
 }
 fn round4(v: f64) -> f64 {
     (v * 1e4).round() / 1e4
-}
-
-/// Loads the default shape library (embedded in the binary).
-pub fn default_library() -> anyhow::Result<Arc<ShapeLibrary>> {
-    Ok(Arc::new(
-        ShapeLibrary::load_default().context("cannot load the shape library")?,
-    ))
 }
 
 /// `fitstation replay`.
