@@ -52,7 +52,19 @@ enum BenchCommand {
     Deform(fitstation::deform::bench::BenchArgs),
 }
 
+/// A command line tool whose reader went away (`| head`) ends like any Unix tool: Rust
+/// ignores SIGPIPE by default, which turns the closed pipe into a panic on the next print.
+fn default_sigpipe() {
+    #[cfg(unix)]
+    // SAFETY: called first in `main`, before any other thread exists; SIG_DFL is a valid
+    // disposition for SIGPIPE.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
+}
+
 fn main() -> anyhow::Result<()> {
+    default_sigpipe();
     let cli = Cli::parse();
     match cli.command {
         Command::Replay(args) => fitstation::cli::run_replay(&args)?,
