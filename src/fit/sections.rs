@@ -554,26 +554,29 @@ impl SectionPlan {
             mids.push(mid);
             constraints.push([c_hi, c_lo]);
         }
+        let raw_constraints = if super::debug_enabled() && chain.axis == Axis::Z {
+            Some(constraints.clone())
+        } else {
+            None
+        };
         // In the side view, an edge inside a known limb's capsule may be the limb's: it is
         // not the part's.
+        // In the side view, an edge inside a known limb's capsule may be the limb's.
         let known = chain.axis == Axis::Z && occluders.iter().any(Option::is_some);
-        if known {
-            for (e, c) in constraints.iter_mut().enumerate() {
-                let y = scratch.centres[e];
-                for side in c.iter_mut() {
-                    if side.is_some_and(|(_, t)| {
-                        occluders
-                            .iter()
-                            .flatten()
-                            .any(|o| o.covers(y, t, OCCLUDER_MARGIN_M))
-                    }) {
-                        *side = None;
-                    }
-                }
-            }
-        }
-        // Occlusion only ever adds to a silhouette: drop edges that stand out beyond the
-        // part's smooth trend (an arm or a hand in front of the trunk in the side view).
+        let in_limb = |e: usize, side: usize, c: &[Option<(f64, f64)>; 2]| {
+            known
+                && c[side].is_some_and(|(_, t)| {
+                    occluders
+                        .iter()
+                        .flatten()
+                        .any(|o| o.covers(scratch.centres[e], t, OCCLUDER_MARGIN_M))
+                })
+        };
+        // Occlusion only ever adds to a silhouette: an edge that stands out beyond the
+        // part's smooth trend may be an arm's or a hand's in front of the trunk. Without
+        // known limbs every such edge is dropped. With them, the limbs explain the edges
+        // they cover; one that stands out where no limb is (a belly, a bust the candidate
+        // lacks) is the part's own, unless it is a gross outlier of the trend.
         for side in 0..2 {
             let sign = if side == 0 { 1.0 } else { -1.0 };
             scratch.trend_y.clear();
@@ -584,20 +587,47 @@ impl SectionPlan {
                     scratch.trend_d.push(sign * (t - p));
                 }
             }
-            let tolerance = if known {
-                KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M
+            let tight = outward_inliers(
+                &scratch.trend_y,
+                &scratch.trend_d,
+                chain.axis.outward_tolerance(),
+            );
+            let loose = if known {
+                outward_inliers(
+                    &scratch.trend_y,
+                    &scratch.trend_d,
+                    KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M,
+                )
             } else {
-                chain.axis.outward_tolerance()
+                tight.clone()
             };
-            let keep = outward_inliers(&scratch.trend_y, &scratch.trend_d, tolerance);
             let mut k = 0;
-            for c in constraints.iter_mut() {
-                if c[side].is_some() {
-                    if !keep.get(k).copied().unwrap_or(true) {
-                        c[side] = None;
+            for e in 0..constraints.len() {
+                if constraints[e][side].is_some() {
+                    let on_trend = tight.get(k).copied().unwrap_or(true);
+                    let plausible = loose.get(k).copied().unwrap_or(true);
+                    let keep =
+                        plausible && (on_trend || (known && !in_limb(e, side, &constraints[e])));
+                    if !keep {
+                        constraints[e][side] = None;
                     }
                     k += 1;
                 }
+            }
+        }
+        if let Some(raw) = raw_constraints {
+            for (e, (r, c)) in raw.iter().zip(&constraints).enumerate() {
+                let f =
+                    |o: Option<(f64, f64)>| o.map_or("-".to_string(), |(_, t)| format!("{t:.3}"));
+                eprintln!(
+                    "SIDEZ {} y {:.3} front {} kept {} back {} kept {}",
+                    occluders.iter().any(Option::is_some),
+                    scratch.centres[e],
+                    f(r[0]),
+                    f(c[0]),
+                    f(r[1]),
+                    f(c[1])
+                );
             }
         }
         scratch
@@ -915,6 +945,60 @@ mod tests {
             .evidence_at(&scratch, Region::Torso, 0.70, 0.05)
             .expect("evidence");
         assert!(e.depth.seen < 0.75 && e.width.seen > 0.99, "{e:?}");
+    }
+
+    #[test]
+    fn a_limb_over_the_trunks_own_outline_does_not_hide_it() {
+        // The side view's forearm keypoints put its capsule over the trunk's front edge
+        // (the arm passes beside the trunk, inside its outline): where that edge keeps the
+        // trunk's smooth trend (a gentle 8 mm bulge here), it is the trunk's own and is
+        // followed, not filled in from the edges around it.
+        let (mesh, set) = torso_cylinder(0.025);
+        let bulge = |y: f64| 0.008 * (-((y - 0.70) / 0.05).powi(2) / 2.0).exp();
+        let targets: Vec<Option<DVec3>> = set
+            .controls
+            .iter()
+            .map(|c| {
+                let p = mesh.positions[c.vertex as usize];
+                let dz = if c.status == Status::Front {
+                    bulge(p.y)
+                } else {
+                    0.0
+                };
+                Some(p + DVec3::Z * dz)
+            })
+            .collect();
+        let forearm = SideOccluder {
+            a: glam::DVec2::new(0.60, 0.085),
+            b: glam::DVec2::new(0.80, 0.085),
+            radius: 0.02,
+        };
+        assert!(forearm.covers(0.70, 0.108, OCCLUDER_MARGIN_M));
+        let plan = SectionPlan::new(&set);
+        let mut scratch = SectionScratch::default();
+        let mut out = Vec::new();
+        plan.targets(
+            &mesh.positions,
+            &set,
+            &targets,
+            &[Some(forearm)],
+            &mut scratch,
+            &mut out,
+        );
+        let mut best = (f64::MIN, 0.0);
+        for (v, t) in out.iter().enumerate() {
+            let p = mesh.positions[v];
+            if let Some(t) = t.filter(|_| (0.68..=0.72).contains(&p.y) && p.x.abs() < 0.02) {
+                if p.z > best.0 {
+                    best = (p.z, t.z - p.z);
+                }
+            }
+        }
+        assert!(
+            best.1 > 0.005,
+            "the bulge under the limb followed by {}",
+            best.1
+        );
     }
 
     #[test]
