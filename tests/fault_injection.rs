@@ -347,7 +347,7 @@ fn replay_inject_logs_and_reports_the_faults() {
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "replay failed: {stderr}");
     assert!(stderr.contains("inject: corrupt-front from 0.50 s"), "{stderr}");
-    assert!(stderr.contains("fault: source: side camera lost"), "{stderr}");
+    assert!(stderr.contains("fault: source: camera disconnected: side camera lost"), "{stderr}");
     assert!(stderr.contains("Corrupt front frame (random bytes"), "{stderr}");
     let report: serde_json::Value =
         serde_json::from_slice(&o.stdout).expect("report JSON on stdout");
@@ -356,7 +356,7 @@ fn replay_inject_logs_and_reports_the_faults() {
         faults
             .iter()
             .any(|f| f["source"] == "camera disconnected: side camera lost: no frames"
-                && f["pairs"] == 3),
+                && f["pairs"].as_u64().is_some_and(|n| (3..=4).contains(&n))),
         "{faults:?}"
     );
     assert!(report["measurements_mm"]["chest_girth"].as_f64().is_some());
