@@ -228,7 +228,10 @@ fn check_fault(spec: &str, window: (f64, f64), says: &str, relearn: bool) -> Run
         .iter()
         .filter(|s| s.t >= window.1 && s.fitted())
         .count();
-    assert!(resumed >= 3, "{spec}: only {resumed} fitted pairs after the fault");
+    assert!(
+        resumed >= 3,
+        "{spec}: only {resumed} fitted pairs after the fault"
+    );
     // The backdrop is learnt again only when the scene changed.
     assert_eq!(r.relearnt(), relearn, "{spec}: backdrop relearnt");
     if !relearn {
@@ -240,7 +243,11 @@ fn check_fault(spec: &str, window: (f64, f64), says: &str, relearn: bool) -> Run
             "{spec}: learning the backdrop again"
         );
     }
-    assert!(r.checked_pairs > FRAMES / 2, "{spec}: {} pairs checked", r.checked_pairs);
+    assert!(
+        r.checked_pairs > FRAMES / 2,
+        "{spec}: {} pairs checked",
+        r.checked_pairs
+    );
     r
 }
 
@@ -261,7 +268,12 @@ fn a_stall_is_reported_and_the_fit_resumes() {
 
 #[test]
 fn a_lost_camera_is_reported_and_never_paired_with_stale_frames() {
-    let r = check_fault("drop-side@1.25:0.3", (1.25, 1.55), "side camera lost", false);
+    let r = check_fault(
+        "drop-side@1.25:0.3",
+        (1.25, 1.55),
+        "side camera lost",
+        false,
+    );
     assert!(r.reported("No frames for 0.3 s"));
     // No pair at all while the side camera was gone.
     assert!(r.snaps.iter().all(|s| !(1.25..1.55).contains(&s.t)));
@@ -286,12 +298,22 @@ fn a_corrupt_frame_is_skipped() {
 
 #[test]
 fn a_wrongly_sized_frame_is_skipped() {
-    check_fault("resize-front@1.3:0.1", (1.3, 1.4), "Corrupt front frame", false);
+    check_fault(
+        "resize-front@1.3:0.1",
+        (1.3, 1.4),
+        "Corrupt front frame",
+        false,
+    );
 }
 
 #[test]
 fn a_sudden_exposure_change_is_skipped_without_relearning() {
-    check_fault("exposure@1.3:0.15", (1.3, 1.45), "Sudden exposure change", false);
+    check_fault(
+        "exposure@1.3:0.15",
+        (1.3, 1.45),
+        "Sudden exposure change",
+        false,
+    );
 }
 
 #[test]
@@ -308,12 +330,20 @@ fn a_lasting_exposure_change_relearns_the_backdrop_and_keeps_the_result() {
     let relearn_t = r
         .snaps
         .iter()
-        .find(|s| s.faults.iter().any(|f| f.contains("learning the backdrop again")))
+        .find(|s| {
+            s.faults
+                .iter()
+                .any(|f| f.contains("learning the backdrop again"))
+        })
         .map(|s| s.t)
         .expect("relearn");
     assert!((2.35..2.5).contains(&relearn_t), "relearnt at {relearn_t}");
     for s in r.snaps.iter().filter(|s| s.t >= 1.4 && s.t < 2.8) {
-        assert!(!s.measurements.is_empty(), "measurements lost at {:.3} s", s.t);
+        assert!(
+            !s.measurements.is_empty(),
+            "measurements lost at {:.3} s",
+            s.t
+        );
     }
     assert!(
         r.snaps.iter().filter(|s| s.t >= 2.8 && s.fitted()).count() >= 3,
@@ -346,28 +376,45 @@ fn replay_inject_logs_and_reports_the_faults() {
     ]);
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(o.status.success(), "replay failed: {stderr}");
-    assert!(stderr.contains("inject: corrupt-front from 0.50 s"), "{stderr}");
-    assert!(stderr.contains("fault: source: camera disconnected: side camera lost"), "{stderr}");
-    assert!(stderr.contains("Corrupt front frame (random bytes"), "{stderr}");
+    assert!(
+        stderr.contains("inject: corrupt-front from 0.50 s"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("fault: source: camera disconnected: side camera lost"),
+        "{stderr}"
+    );
+    assert!(
+        stderr.contains("Corrupt front frame (random bytes"),
+        "{stderr}"
+    );
     let report: serde_json::Value =
         serde_json::from_slice(&o.stdout).expect("report JSON on stdout");
     let faults = report["faults"].as_array().expect("faults in the report");
     assert!(
-        faults
-            .iter()
-            .any(|f| f["source"] == "camera disconnected: side camera lost: no frames"
-                && f["pairs"].as_u64().is_some_and(|n| (3..=4).contains(&n))),
+        faults.iter().any(
+            |f| f["source"] == "camera disconnected: side camera lost: no frames"
+                && f["pairs"].as_u64().is_some_and(|n| (3..=4).contains(&n))
+        ),
         "{faults:?}"
     );
     assert!(report["measurements_mm"]["chest_girth"].as_f64().is_some());
     let _ = std::fs::remove_dir_all(&out);
 
     // A bad SPEC is refused in one clear line, and --help explains the syntax.
-    let o = fitstation(&["replay", demo.to_str().expect("path"), "--inject", "wobble@1:2"]);
+    let o = fitstation(&[
+        "replay",
+        demo.to_str().expect("path"),
+        "--inject",
+        "wobble@1:2",
+    ]);
     assert!(!o.status.success());
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert!(stderr.contains("unknown fault 'wobble'"), "{stderr}");
     let o = fitstation(&["replay", "--help"]);
     let help = String::from_utf8_lossy(&o.stdout);
-    assert!(help.contains("KIND[=GAIN]@START:DURATION") && help.contains("drop-side"), "{help}");
+    assert!(
+        help.contains("KIND[=GAIN]@START:DURATION") && help.contains("drop-side"),
+        "{help}"
+    );
 }

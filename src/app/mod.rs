@@ -631,7 +631,9 @@ impl StationApp {
         let quiet_s = now - self.last_snapshot_s;
         let paused = self.runner.controls.paused.load(Ordering::Relaxed);
         if self.snapshots_shown > 0 && quiet_s > STALL_SHOWN_S && !st.ended && !paused {
-            return Some(format!("No frames for {quiet_s:.0} s: last measurements kept"));
+            return Some(format!(
+                "No frames for {quiet_s:.0} s: last measurements kept"
+            ));
         }
         self.last_fault
             .as_ref()

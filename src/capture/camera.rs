@@ -14,7 +14,9 @@
 //!
 //! [`SourceError::Disconnected`]: crate::pipeline::SourceError::Disconnected
 
-use super::device::{CameraDevice, DeviceError, DeviceFrame, DeviceOpener, DevicePairSource, Opened};
+use super::device::{
+    CameraDevice, DeviceError, DeviceFrame, DeviceOpener, DevicePairSource, Opened,
+};
 use super::{device_index, yuyv_to_rgb, CaptureConfig, PixelFormat};
 use crate::camera::{StationCalibration, View};
 use image::RgbImage;
@@ -110,7 +112,10 @@ struct NokhwaDevice {
 impl CameraDevice for NokhwaDevice {
     fn frame(&mut self) -> Result<DeviceFrame, DeviceError> {
         // Unplugged or failing: the worker drops the device and reopens on schedule.
-        let buf = self.cam.frame().map_err(|e| DeviceError::Lost(e.to_string()))?;
+        let buf = self
+            .cam
+            .frame()
+            .map_err(|e| DeviceError::Lost(e.to_string()))?;
         // The driver's capture time (V4L2 monotonic, given as wall-clock by nokhwa).
         let captured_unix_s = buf.capture_timestamp().map(|d| d.as_secs_f64());
         let res = buf.resolution();

@@ -429,7 +429,10 @@ impl CameraDevice for FakeDevice {
             }
             let n = self.next;
             self.next += 1;
-            let stalled = c.faults.iter().find(|f| f.kind == FaultKind::Stall && f.active_at(due));
+            let stalled = c
+                .faults
+                .iter()
+                .find(|f| f.kind == FaultKind::Stall && f.active_at(due));
             match stalled {
                 Some(f) => self.next = (f.end_s() * c.fps).ceil() as u64,
                 None => break (n, due, c.active(self.view, due)),
@@ -476,8 +479,16 @@ mod tests {
 
     /// Reads the fake cameras for `seconds`: per call, the pair's (time, front frame
     /// number, side frame number) or the error.
-    fn read(spec: &str, seconds: f64) -> (Vec<Result<(f64, u8, u8), String>>, Arc<FakeCameras>) {
-        let cams = Arc::new(FakeCameras::new(8, 6, 30.0, parse_spec(spec).expect("spec")));
+    /// Per `next_pair` call: (time, front frame number, side frame number) or the error.
+    type Reads = Vec<Result<(f64, u8, u8), String>>;
+
+    fn read(spec: &str, seconds: f64) -> (Reads, Arc<FakeCameras>) {
+        let cams = Arc::new(FakeCameras::new(
+            8,
+            6,
+            30.0,
+            parse_spec(spec).expect("spec"),
+        ));
         let config = CaptureConfig {
             width: 8,
             height: 6,
@@ -514,10 +525,19 @@ mod tests {
             assert_eq!(f, s, "pair at {t:.3} s mixes frames {f} and {s}");
         }
         assert!(pairs.iter().any(|p| p.0 < 0.3), "pairs before");
-        assert!(pairs.iter().filter(|p| p.0 > 0.8).count() >= 5, "pairs after: {pairs:?}");
+        assert!(
+            pairs.iter().filter(|p| p.0 > 0.8).count() >= 5,
+            "pairs after: {pairs:?}"
+        );
         // (Times are a few microseconds early: the source's clock starts after the fakes'.)
-        assert!(pairs.iter().all(|p| !(0.31..0.69).contains(&p.0)), "{pairs:?}");
-        assert!(cams.opens[View::Side as usize].load(Ordering::Relaxed) >= 2, "reopened");
+        assert!(
+            pairs.iter().all(|p| !(0.31..0.69).contains(&p.0)),
+            "{pairs:?}"
+        );
+        assert!(
+            cams.opens[View::Side as usize].load(Ordering::Relaxed) >= 2,
+            "reopened"
+        );
         assert_eq!(cams.opens[View::Front as usize].load(Ordering::Relaxed), 1);
     }
 

@@ -149,7 +149,9 @@ fn parse_fault(item: &str) -> Result<Fault, SpecError> {
         item: item.into(),
         msg: msg.into(),
     };
-    let (head, window) = item.split_once('@').ok_or_else(|| bad("no '@START:DURATION'"))?;
+    let (head, window) = item
+        .split_once('@')
+        .ok_or_else(|| bad("no '@START:DURATION'"))?;
     let (start, duration) = window
         .split_once(':')
         .ok_or_else(|| bad("no ':DURATION' after the start time"))?;
@@ -594,10 +596,19 @@ mod tests {
 
     #[test]
     fn reorder_and_duplicate_at_pair_level() {
-        assert_eq!(indices(&run("reorder@0.15:0.4")), vec![0, 1, 3, 2, 5, 4, 6, 7, 8, 9]);
-        assert_eq!(indices(&run("duplicate@0.15:0.2")), vec![0, 1, 2, 2, 3, 3, 4, 5, 6, 7, 8, 9]);
+        assert_eq!(
+            indices(&run("reorder@0.15:0.4")),
+            vec![0, 1, 3, 2, 5, 4, 6, 7, 8, 9]
+        );
+        assert_eq!(
+            indices(&run("duplicate@0.15:0.2")),
+            vec![0, 1, 2, 2, 3, 3, 4, 5, 6, 7, 8, 9]
+        );
         // A pair held back when the window closes (or the source ends) still goes out.
-        assert_eq!(indices(&run("reorder@0.85:5")), vec![0, 1, 2, 3, 4, 5, 6, 7, 8, 9]);
+        assert_eq!(
+            indices(&run("reorder@0.85:5")),
+            vec![0, 1, 2, 3, 4, 5, 6, 7, 8, 9]
+        );
     }
 
     #[test]

@@ -437,12 +437,7 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
         Some(f) => Box::new(FaultInjector::new(Box::new(source), f).log_to_stderr(true)),
         None => Box::new(source),
     };
-    let summary = run_offline(
-        source.as_mut(),
-        &mut proc_,
-        args.max_frames,
-        !args.fit.json,
-    );
+    let summary = run_offline(source.as_mut(), &mut proc_, args.max_frames, !args.fit.json);
     finish(summary, args.out.as_deref(), args.fit.json)
 }
 

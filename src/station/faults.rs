@@ -48,6 +48,14 @@ const BAND_FRACTION: u32 = 6;
 /// Backdrop luma below which a sample says nothing about the exposure ratio.
 const MIN_REFERENCE_LUMA: f32 = 20.0;
 
+/// The phase and frames of the last snapshot made from a good pair.
+#[derive(Debug, Clone)]
+struct LastGood {
+    phase: Phase,
+    front: Option<Arc<RgbImage>>,
+    side: Option<Arc<RgbImage>>,
+}
+
 /// What the monitor decided for a pair.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Screened {
@@ -70,7 +78,7 @@ pub struct FaultMonitor {
     /// The fault that skipped the last pairs, said again when good frames come back.
     faulted: Option<String>,
     /// The last good snapshot's phase and frames, shown while pairs are skipped.
-    last_good: Option<(Phase, Option<Arc<RgbImage>>, Option<Arc<RgbImage>>)>,
+    last_good: Option<LastGood>,
     /// Scratch: sampled luma of the current frame.
     luma: Vec<f32>,
 }
@@ -170,11 +178,9 @@ impl FaultMonitor {
             .enumerate()
         {
             sample_luma(frame, &mut self.luma);
-            let Some(ratio) = exposure_ratio(
-                &self.luma,
-                &self.reference[k],
-                self.reference_frames as f32,
-            ) else {
+            let Some(ratio) =
+                exposure_ratio(&self.luma, &self.reference[k], self.reference_frames as f32)
+            else {
                 continue;
             };
             if worst.is_none_or(|(_, w)| ratio.ln().abs() > w.ln().abs()) {
@@ -205,7 +211,11 @@ impl FaultMonitor {
 
     /// Remembers the phase and frames of a snapshot made from a good pair.
     pub fn remember(&mut self, s: &FitSnapshot) {
-        self.last_good = Some((s.phase, s.front_frame.clone(), s.side_frame.clone()));
+        self.last_good = Some(LastGood {
+            phase: s.phase,
+            front: s.front_frame.clone(),
+            side: s.side_frame.clone(),
+        });
     }
 }
 
@@ -270,11 +280,11 @@ fn luma(p: &image::Rgb<u8>) -> f32 {
 fn mean_neighbour_step(f: &RgbImage) -> f64 {
     let (mut sum, mut n) = (0.0f64, 0u64);
     for y in (SAMPLE_STEP / 2..f.height()).step_by(SAMPLE_STEP as usize) {
-        let mut prev = None;
+        let mut prev: Option<f32> = None;
         for x in 0..f.width() {
             let l = luma(f.get_pixel(x, y));
             if let Some(p) = prev {
-                sum += (l - p as f32).abs() as f64;
+                sum += (l - p).abs() as f64;
                 n += 1;
             }
             prev = Some(l);
@@ -328,7 +338,10 @@ fn exposure_ratio(samples: &[f32], reference: &[f32], frames: f32) -> Option<f64
 impl StationProcessor {
     /// Screens a pair for source faults: `Ok(notes)` to process it (notes to add to its
     /// snapshot), or `Err(snapshot)` with the last good result and the fault.
-    pub(super) fn screen_faults(&mut self, pair: &FramePair) -> Result<Vec<String>, Box<FitSnapshot>> {
+    pub(super) fn screen_faults(
+        &mut self,
+        pair: &FramePair,
+    ) -> Result<Vec<String>, Box<FitSnapshot>> {
         let learning = self.learned < self.opts.backdrop_frames;
         match self.faults.screen(pair, &self.calib, learning) {
             Screened::Pass { notes, relearn } => {
@@ -350,7 +363,7 @@ impl StationProcessor {
     /// The last good result (measurements, avatar, frames, phase) with the fault said.
     fn fault_snapshot(&self, pair: &FramePair, reason: String) -> FitSnapshot {
         let (phase, front, side) = match &self.faults.last_good {
-            Some((p, f, s)) => (*p, f.clone(), s.clone()),
+            Some(g) => (g.phase, g.front.clone(), g.side.clone()),
             None => (Phase::LearningBackdrop, None, None),
         };
         let mut s = self.snapshot(pair.index, phase, None);
@@ -406,8 +419,12 @@ mod tests {
         let mut m = FaultMonitor::default();
         assert!(is_pass(&m.screen(&pair(0, 0.0, 100), &c, true)));
         assert!(is_pass(&m.screen(&pair(1, 0.1, 100), &c, false)));
-        assert!(matches!(m.screen(&pair(1, 0.1, 100), &c, false), Screened::Skip(e) if e.contains("twice")));
-        assert!(matches!(m.screen(&pair(0, 0.0, 100), &c, false), Screened::Skip(e) if e.contains("out of order")));
+        assert!(
+            matches!(m.screen(&pair(1, 0.1, 100), &c, false), Screened::Skip(e) if e.contains("twice"))
+        );
+        assert!(
+            matches!(m.screen(&pair(0, 0.0, 100), &c, false), Screened::Skip(e) if e.contains("out of order"))
+        );
         match m.screen(&pair(2, 2.0, 100), &c, false) {
             Screened::Pass { notes, relearn } => {
                 assert!(!relearn);
@@ -439,8 +456,13 @@ mod tests {
         let c = calib();
         let mut m = FaultMonitor::default();
         assert!(is_pass(&m.screen(&pair(0, 0.0, 100), &c, true)));
-        assert!(is_pass(&m.screen(&pair(1, 0.1, 110), &c, false)), "within the drift");
-        assert!(matches!(m.screen(&pair(2, 0.2, 180), &c, false), Screened::Skip(e) if e.contains("exposure")));
+        assert!(
+            is_pass(&m.screen(&pair(1, 0.1, 110), &c, false)),
+            "within the drift"
+        );
+        assert!(
+            matches!(m.screen(&pair(2, 0.2, 180), &c, false), Screened::Skip(e) if e.contains("exposure"))
+        );
         assert!(is_pass(&m.screen(&pair(3, 0.3, 100), &c, false)));
         for k in 4..14 {
             let s = m.screen(&pair(k, k as f64 * 0.1, 50), &c, false);
