@@ -100,6 +100,9 @@ pub struct DevicePairSource {
     problems: Problems,
     matcher: PairMatcher<RgbImage>,
     index: u64,
+    /// When each camera's last frame came (front, side); a camera silent for longer
+    /// than [`super::ReconnectPolicy::stall_timeout_s`] is reported lost.
+    last_frame: [Instant; 2],
 }
 
 impl DevicePairSource {
@@ -146,12 +149,26 @@ impl DevicePairSource {
             frames: rx,
             problems,
             index: 0,
+            last_frame: [epoch; 2],
         }
     }
 
     /// The exposure/white-balance lock switch (for the screen's backdrop-learnt hook).
     pub fn controls(&self) -> Arc<CaptureControls> {
         self.controls.clone()
+    }
+
+    /// The cameras silent for longer than the stall timeout (a device that blocks
+    /// without an error), in one line.
+    fn silent(&self) -> Option<String> {
+        let timeout_s = self.config.reconnect.stall_timeout_s;
+        let v: Vec<String> = View::BOTH
+            .into_iter()
+            .map(|v| (v, self.last_frame[v as usize].elapsed().as_secs_f64()))
+            .filter(|(_, quiet_s)| *quiet_s > timeout_s)
+            .map(|(v, quiet_s)| format!("{} camera: no frames for {quiet_s:.1} s", v.name()))
+            .collect();
+        (!v.is_empty()).then(|| v.join("; "))
     }
 
     /// What is wrong with the cameras, both in one line.
@@ -179,6 +196,7 @@ impl FrameSource for DevicePairSource {
             let left = deadline.saturating_duration_since(Instant::now());
             match self.frames.recv_timeout(left) {
                 Ok(f) => {
+                    self.last_frame[f.view as usize] = Instant::now();
                     match f.view {
                         View::Front => self.matcher.push_front(f.t_s, f.image),
                         View::Side => self.matcher.push_side(f.t_s, f.image),
@@ -195,7 +213,7 @@ impl FrameSource for DevicePairSource {
                     }
                 }
                 Err(RecvTimeoutError::Timeout) => {
-                    return Err(match self.problem() {
+                    return Err(match self.problem().or_else(|| self.silent()) {
                         Some(p) => SourceError::Disconnected(p),
                         None => SourceError::Skipped("no matching frame pair yet".into()),
                     });
@@ -495,7 +513,7 @@ mod tests {
             reconnect: ReconnectPolicy {
                 first_retry_s: 0.1,
                 max_retry_s: 0.2,
-                stall_timeout_s: 1.0,
+                stall_timeout_s: 0.5,
             },
             ..CaptureConfig::default()
         };
@@ -539,6 +557,20 @@ mod tests {
             "reopened"
         );
         assert_eq!(cams.opens[View::Front as usize].load(Ordering::Relaxed), 1);
+    }
+
+    #[test]
+    fn a_blocked_device_is_reported_lost_after_the_stall_timeout() {
+        let (out, _) = read("stall@0.2:1.2", 1.8);
+        let errors: Vec<&String> = out.iter().filter_map(|r| r.as_ref().err()).collect();
+        assert!(
+            errors
+                .iter()
+                .any(|e| e.contains("front camera: no frames for") && e.contains("side camera")),
+            "{errors:?}"
+        );
+        let pairs: Vec<(f64, u8, u8)> = out.iter().flatten().copied().collect();
+        assert!(pairs.iter().filter(|p| p.0 > 1.45).count() >= 3, "{pairs:?}");
     }
 
     #[test]
