@@ -62,6 +62,7 @@ pub struct Opened {
 
 /// Opens the front or side camera.
 pub trait DeviceOpener: Send + Sync {
+    /// Opens the camera of `view`, or says why it cannot.
     fn open(&self, view: View) -> Result<Opened, String>;
 }
 
@@ -377,6 +378,7 @@ pub struct FakeCameras {
 }
 
 impl FakeCameras {
+    /// Fake cameras of `width` x `height` at `fps`; the schedule's clock starts now.
     pub fn new(width: u32, height: u32, fps: f64, faults: Vec<Fault>) -> Self {
         FakeCameras {
             width,
