@@ -2,6 +2,7 @@
 //! of stills and write `avatar.obj` + `report.json` (`../shared/spec/formats.md`).
 
 use crate::camera::StationCalibration;
+use crate::capture::inject::FaultInjector;
 use crate::deform::DecoderKind;
 use crate::fit::correspond::Variant;
 use crate::pipeline::timing::TimingStats;
@@ -83,6 +84,9 @@ pub struct ReplayArgs {
     /// With --ui: start with the operator tools open.
     #[arg(long, requires = "ui")]
     pub operator: bool,
+    /// Inject faults into the frames, e.g. 'drop-side@4:2,stall@8:1.5' (see --help).
+    #[arg(long, value_name = "SPEC", long_help = crate::capture::inject::SPEC_HELP)]
+    pub inject: Option<String>,
     #[command(flatten)]
     pub fit: FitCliOptions,
 }
@@ -165,6 +169,7 @@ pub fn run_offline(
 ) -> RunSummary {
     let mut timings = TimingStats::default();
     let mut messages: Vec<String> = Vec::new();
+    let mut faults = FaultLog::default();
     let mut series = Vec::new();
     let mut last = None;
     let mut n = 0usize;
@@ -180,7 +185,10 @@ pub fn run_offline(
                 break;
             }
             Err(e) => {
-                messages.push(e.to_string());
+                faults.source(&e.to_string());
+                if !messages.contains(&e.to_string()) {
+                    messages.push(e.to_string());
+                }
                 proc_.counts.total += 1;
                 n += 1;
                 continue;
@@ -188,6 +196,9 @@ pub fn run_offline(
         };
         n += 1;
         let snap = proc_.process(&pair);
+        for f in &snap.faults {
+            faults.station(pair.index, pair.timestamp_s, f);
+        }
         if progress {
             eprint!(
                 "\rframe {:>4}  {:<20}",
@@ -271,12 +282,48 @@ pub fn run_offline(
         "body_landmarks": body_landmarks,
         "fit": proc_.last_fit,
         "messages": messages,
+        "faults": faults.entries,
         "series": series,
     });
     RunSummary {
         report,
         avatar: proc_.avatar().map(|a| (*a).clone()),
         last,
+    }
+}
+
+/// The faults of a run as `report.json` `faults` lists them and stderr logs them: the
+/// station's (one per pair, with its frame and time) and the source's errors (a run of
+/// the same error is one entry with its count of pairs).
+#[derive(Default)]
+struct FaultLog {
+    entries: Vec<serde_json::Value>,
+    /// The source error of the last entry while it repeats.
+    repeating: Option<String>,
+}
+
+impl FaultLog {
+    /// Logs a fault the station found on pair `frame` at `time_s`.
+    fn station(&mut self, frame: u64, time_s: f64, fault: &str) {
+        self.repeating = None;
+        eprintln!("\rfault: frame {frame} ({time_s:.2} s): {fault}");
+        self.entries.push(serde_json::json!({
+            "frame": frame, "time_s": round4(time_s), "fault": fault,
+        }));
+    }
+
+    /// Logs an error of the source (a lost camera, a skipped frame).
+    fn source(&mut self, fault: &str) {
+        if self.repeating.as_deref() == Some(fault) {
+            if let Some(n) = self.entries.last_mut().and_then(|e| e.get_mut("pairs")) {
+                *n = (n.as_u64().unwrap_or(0) + 1).into();
+            }
+            return;
+        }
+        eprintln!("\rfault: source: {fault}");
+        self.repeating = Some(fault.to_string());
+        self.entries
+            .push(serde_json::json!({ "source": fault, "pairs": 1 }));
     }
 }
 
@@ -325,6 +372,11 @@ fn round4(v: f64) -> f64 {
 
 /// `fitstation replay`.
 pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
+    let faults = args
+        .inject
+        .as_deref()
+        .map(crate::capture::inject::parse_spec)
+        .transpose()?;
     let mut source = RecordingSource::open(&args.recording)?;
     for w in source.recording().warnings() {
         eprintln!("warning: {w}");
@@ -360,11 +412,23 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
             operator: args.operator,
             ..crate::app::AppOptions::default()
         };
-        let summary = crate::app::run(Box::new(source), Box::new(proc_), app_opts)?;
+        let source: Box<dyn FrameSource> = match faults {
+            Some(f) => Box::new(
+                FaultInjector::new(Box::new(source), f)
+                    .real_time(true)
+                    .log_to_stderr(true),
+            ),
+            None => Box::new(source),
+        };
+        let summary = crate::app::run(source, Box::new(proc_), app_opts)?;
         eprint!("{summary}");
         return Ok(());
     }
-    let summary = run_offline(&mut source, &mut proc_, args.max_frames, !args.fit.json);
+    let mut source: Box<dyn FrameSource> = match faults {
+        Some(f) => Box::new(FaultInjector::new(Box::new(source), f).log_to_stderr(true)),
+        None => Box::new(source),
+    };
+    let summary = run_offline(source.as_mut(), &mut proc_, args.max_frames, !args.fit.json);
     finish(summary, args.out.as_deref(), args.fit.json)
 }
 

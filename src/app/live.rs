@@ -224,7 +224,7 @@ pub fn run_live_cli(args: LiveArgs) -> anyhow::Result<()> {
             format,
             ..Default::default()
         };
-        let source = CameraPairSource::open(config, calibration);
+        let source = CameraPairSource::open_cameras(config, calibration);
         let locks = source.controls();
         let opts = AppOptions {
             title: "fitstation live".into(),

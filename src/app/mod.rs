@@ -441,7 +441,16 @@ struct StationApp {
     pending_arrival: Option<Instant>,
     /// Snapshots published by the process thread when the slot was last looked at.
     published_seen: u64,
+    /// The last source fault the station reported and when (seconds since start).
+    last_fault: Option<(String, f64)>,
+    /// When the last snapshot came (seconds since start), for the stall warning.
+    last_snapshot_s: f64,
 }
+
+/// How long a source fault stays in the top bar after it was reported (seconds).
+const FAULT_SHOWN_S: f64 = 3.0;
+/// No snapshot for this long (seconds) while the source runs is shown as a stall.
+const STALL_SHOWN_S: f64 = 1.0;
 
 /// Frames an automatic screenshot waits beyond its frame for a fitted avatar.
 const SCREENSHOT_GRACE_FRAMES: u64 = 600;
@@ -531,6 +540,8 @@ impl StationApp {
             closing: false,
             pending_arrival: None,
             published_seen: 0,
+            last_fault: None,
+            last_snapshot_s: 0.0,
         })
     }
 
@@ -557,6 +568,7 @@ impl StationApp {
             } = shown;
             self.snapshots_shown += 1;
             trace::ev("snapshot", snap.frame_index);
+            self.note_faults(&snap.faults, now);
             self.snap_meter.tick(now);
             self.pipeline_stats.add_all(&snap.timings_ms);
             self.pending_arrival = self.runner.controls.arrival(snap.frame_index);
@@ -602,6 +614,31 @@ impl StationApp {
             s.front = ViewOverlay::default();
             s.side = ViewOverlay::default();
         }
+    }
+
+    /// Keeps the newest source fault for the top bar and the operator's log.
+    fn note_faults(&mut self, faults: &[String], now: f64) {
+        self.last_snapshot_s = now;
+        for f in faults {
+            self.log(format!("fault: {f}"));
+            self.last_fault = Some((f.clone(), now));
+        }
+    }
+
+    /// The source fault line of the top bar: a stall in progress, else the last fault
+    /// reported in the past [`FAULT_SHOWN_S`].
+    fn fault_line(&self, now: f64, st: &runner::SourceStatus) -> Option<String> {
+        let quiet_s = now - self.last_snapshot_s;
+        let paused = self.runner.controls.paused.load(Ordering::Relaxed);
+        if self.snapshots_shown > 0 && quiet_s > STALL_SHOWN_S && !st.ended && !paused {
+            return Some(format!(
+                "No frames for {quiet_s:.0} s: last measurements kept"
+            ));
+        }
+        self.last_fault
+            .as_ref()
+            .filter(|(_, t)| now - t < FAULT_SHOWN_S)
+            .map(|(f, _)| f.clone())
     }
 
     fn top_bar(&mut self, ui: &mut egui::Ui) {
@@ -652,6 +689,14 @@ impl StationApp {
                 ui.separator();
                 ui.label(
                     RichText::new(p)
+                        .color(Color32::from_rgb(255, 140, 0))
+                        .strong(),
+                );
+            }
+            if let Some(f) = self.fault_line(now, &st) {
+                ui.separator();
+                ui.label(
+                    RichText::new(f)
                         .color(Color32::from_rgb(255, 140, 0))
                         .strong(),
                 );

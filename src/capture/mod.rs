@@ -3,13 +3,19 @@
 //! out is reopened on a backoff schedule ([`Reconnector`]) while the screen shows it.
 //!
 //! The pairing and reconnect logic are pure (time is passed in, seconds on one monotonic
-//! clock) and tested in the default build. The device side ([`CameraPairSource`], V4L2
-//! through nokhwa, MJPEG decoded with zune-jpeg) is behind the cargo feature `camera`.
+//! clock) and tested in the default build. The capture workers that run them over two
+//! devices ([`device::DevicePairSource`]) are in the default build too, tested with fake
+//! cameras that fail on a schedule ([`device::FakeCameras`]); the real devices
+//! (`CameraPairSource`, V4L2 through nokhwa, MJPEG decoded with zune-jpeg) are behind
+//! the cargo feature `camera`. [`inject`] makes any frame source fail the same ways.
 
 #[cfg(feature = "camera")]
 mod camera;
+pub mod device;
+pub mod inject;
 #[cfg(feature = "camera")]
-pub use camera::{CameraPairSource, CaptureControls};
+pub use camera::{CameraPairSource, NokhwaCameras};
+pub use device::{CaptureControls, DevicePairSource};
 
 use std::collections::VecDeque;
 

@@ -117,6 +117,9 @@ pub struct FitSnapshot {
     pub phase: Phase,
     /// Messages for the shopper/operator (frame verdicts, errors), most important first.
     pub messages: Vec<String>,
+    /// Faults of the source found on this pair (stall, lost camera, order, corrupt
+    /// frame, exposure; `station::faults`), also in `messages`: for the screen and log.
+    pub faults: Vec<String>,
     pub front: ViewOverlay,
     pub side: ViewOverlay,
     /// Named landmarks in the station frame (metres).
@@ -137,6 +140,7 @@ impl FitSnapshot {
             frame_index,
             phase,
             messages: Vec::new(),
+            faults: Vec::new(),
             front: ViewOverlay::default(),
             side: ViewOverlay::default(),
             landmarks_station: Vec::new(),

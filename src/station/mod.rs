@@ -8,6 +8,7 @@
 //!
 //! Units: metres in the station frame, millimetres for measurements, pixels for overlays.
 
+pub mod faults;
 pub mod output;
 pub mod pose_change;
 pub mod side_limbs;
@@ -101,6 +102,8 @@ pub struct StationProcessor {
     silhouette_result: SilhouetteResult,
     /// The side view's arms and hands from the person model, for the fit.
     side_limbs: side_limbs::SideLimbs,
+    /// Source faults (stall, order, corrupt frames, exposure) found before the stages.
+    faults: faults::FaultMonitor,
 }
 
 impl StationProcessor {
@@ -133,6 +136,7 @@ impl StationProcessor {
             } else {
                 side_limbs::SideLimbs::off()
             },
+            faults: faults::FaultMonitor::default(),
             opts,
         })
     }
@@ -394,6 +398,11 @@ impl StationProcessor {
 
 impl FrameProcessor for StationProcessor {
     fn process(&mut self, pair: &FramePair) -> FitSnapshot {
+        // A faulty pair is said and skipped, keeping the last good result (`faults`).
+        let notes = match self.screen_faults(pair) {
+            Ok(notes) => notes,
+            Err(s) => return *s,
+        };
         let mut timer = FrameTimer::start();
         let mut s = self.process_inner(pair, &mut timer);
         let total: f64 = timer.stages().iter().map(|(_, ms)| ms).sum();
@@ -402,6 +411,7 @@ impl FrameProcessor for StationProcessor {
         // The screen shows the frames the overlays belong to (kept in memory only).
         s.front_frame = Some(Arc::new(pair.front.clone()));
         s.side_frame = Some(Arc::new(pair.side.clone()));
+        self.after_screened(&mut s, notes);
         s
     }
 
