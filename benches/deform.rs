@@ -4,17 +4,17 @@
 //! run, with the paper-style decode to convergence and the libigl peer.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use fitstation::deform::bench::{load_mesh, problem, rigid_parts, BenchArgs, MAKEHUMAN_BASE_OBJ};
+use fitstation::deform::bench::{load_mesh, problem, rigid_parts, BenchArgs};
 use fitstation::deform::{DecodeOptions, DecoderKind, MeanValueEncoding, MvcDeformer};
 use fitstation::mesh::{shapes, TriMesh};
 use std::hint::black_box;
-use std::path::Path;
 
 /// The MakeHuman body and its rigid extremities, or a cylinder without any.
 fn mesh() -> (TriMesh, Vec<Vec<u32>>) {
-    if Path::new(MAKEHUMAN_BASE_OBJ).exists() {
+    {
         let args = BenchArgs {
             mesh: None,
+            makehuman: None,
             scale: 1.0,
             out: std::env::temp_dir(),
             no_libigl: true,

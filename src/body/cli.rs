@@ -87,10 +87,10 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
         TemplatesCommand::Import { mpfb2, out } => {
             let t0 = Instant::now();
             let res = import::import_mpfb2(&mpfb2)?;
-            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            crate::io::atomic::create_dir(&out)?;
             let bytes = res.data.encode();
             let lib_path = out.join(LIBRARY_FILE);
-            std::fs::write(&lib_path, &bytes)
+            crate::io::atomic::write(&lib_path, &bytes)
                 .with_context(|| format!("writing {}", lib_path.display()))?;
             // Round trip through the file format before trusting it.
             let back = LibraryData::decode(&bytes, &lib_path)?;
@@ -103,7 +103,7 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
             crate::mesh::io::write_obj(&mesh_path, &lib.template().mesh)?;
             lib.template().info.save(&out.join(TEMPLATE_INFO_FILE))?;
             let lic = mpfb2.join("LICENSE.md");
-            std::fs::copy(&lic, out.join("LICENSE.md"))
+            crate::io::atomic::copy(&lic, &out.join("LICENSE.md"))
                 .with_context(|| format!("copying {}", lic.display()))?;
             println!("{}", serde_json::to_string_pretty(&res.report)?);
             println!(

@@ -127,10 +127,9 @@ impl Mp4VideoWriter {
             .intra_frame_period(IntraFramePeriod::from_num_frames(IDR_PERIOD_FRAMES));
         let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
             .map_err(|e| verr(path, format!("H.264 encoder: {e}")))?;
-        let file = File::create(path).map_err(|source| VideoError::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        // A stream, not atomic: a file cut before its index is recovered by the reader.
+        let file =
+            crate::io::atomic::create_recoverable(path).map_err(|e| verr(path, e.cause()))?;
         Ok(Mp4VideoWriter {
             path: path.to_path_buf(),
             encoder,
@@ -248,6 +247,13 @@ impl Mp4VideoWriter {
             file: path.clone(),
             source,
         })?;
+        inner
+            .get_ref()
+            .sync_all()
+            .map_err(|source| VideoError::Io {
+                file: path.clone(),
+                source,
+            })?;
         Ok(self.frames)
     }
 }
