@@ -1855,8 +1855,8 @@ mod tests {
     #[test]
     fn layout_path_sits_beside_the_screenshot() {
         assert_eq!(
-            layout_path(Path::new("/tmp/a/shot.png")),
-            PathBuf::from("/tmp/a/shot.layout.json")
+            layout_path(Path::new("shots/a/shot.png")),
+            PathBuf::from("shots/a/shot.layout.json")
         );
     }
 }

@@ -32,7 +32,7 @@ use openh264::encoder::{
 use openh264::formats::{RgbSliceU8, YUVBuffer, YUVSource};
 use openh264::OpenH264API;
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 /// Media timescale of the written tracks (ticks per second).
@@ -96,8 +96,10 @@ pub fn annexb_nals(stream: &[u8]) -> Vec<&[u8]> {
 pub struct Mp4VideoWriter {
     path: PathBuf,
     encoder: Encoder,
-    mp4: Option<mp4::Mp4Writer<BufWriter<File>>>,
-    file: Option<BufWriter<File>>,
+    /// Unbuffered: each sample reaches the file as it is written, so a recording cut
+    /// before its index is recovered up to its last whole sample.
+    mp4: Option<mp4::Mp4Writer<File>>,
+    file: Option<File>,
     width: u32,
     height: u32,
     frame_ticks: u32,
@@ -134,7 +136,7 @@ impl Mp4VideoWriter {
             path: path.to_path_buf(),
             encoder,
             mp4: None,
-            file: Some(BufWriter::new(file)),
+            file: Some(file),
             width,
             height,
             frame_ticks: (TIMESCALE as f64 / fps).round() as u32,
@@ -247,13 +249,10 @@ impl Mp4VideoWriter {
             file: path.clone(),
             source,
         })?;
-        inner
-            .get_ref()
-            .sync_all()
-            .map_err(|source| VideoError::Io {
-                file: path.clone(),
-                source,
-            })?;
+        inner.sync_all().map_err(|source| VideoError::Io {
+            file: path.clone(),
+            source,
+        })?;
         Ok(self.frames)
     }
 }
