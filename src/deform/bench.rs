@@ -405,6 +405,7 @@ pub fn rigid_parts(args: &BenchArgs) -> anyhow::Result<Vec<Vec<u32>>> {
 
 /// Runs the benchmark and prints its figures.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    crate::io::atomic::check_dir(&args.out).map_err(|e| anyhow::anyhow!("--out: {e}"))?;
     let mesh = load_mesh(&args)?;
     let n = mesh.vertex_count();
     let parts = if args.free_extremities {

@@ -38,7 +38,7 @@ pub enum RecordingError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{0}")]
+    #[error(transparent)]
     Calibration(#[from] CameraError),
     #[error(
         "{dir}: no frames (expected front/ and side/ frame folders or front.mp4 and side.mp4)"
@@ -48,7 +48,7 @@ pub enum RecordingError {
     OutOfRange { k: usize, len: usize },
     #[error("{path}: {msg}")]
     Image { path: PathBuf, msg: String },
-    #[error("{0}")]
+    #[error(transparent)]
     Video(#[from] VideoError),
     #[error("{path}: {msg}")]
     Meta { path: PathBuf, msg: String },

@@ -96,7 +96,7 @@ pub enum SynthError {
     Subject(#[from] subject::SubjectError),
     #[error("{0}")]
     Measure(#[from] crate::measure::MeasureError),
-    #[error("{0}")]
+    #[error(transparent)]
     Recording(#[from] RecordingError),
     #[error("{path}: {source}")]
     Io {
