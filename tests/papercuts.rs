@@ -145,3 +145,56 @@ fn an_output_path_that_is_an_existing_file_is_said_in_words() {
     assert!(text(&o.stderr).contains("already holds a recording"), "{}", text(&o.stderr));
     let _ = std::fs::remove_dir_all(&d);
 }
+
+/// Runs the binary with no display and an empty cache in `cwd`.
+fn run_headless(cwd: &Path, args: &[&str]) -> Output {
+    Command::new(exe())
+        .current_dir(cwd)
+        .args(args)
+        .env_remove("RUST_BACKTRACE")
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .env("FITSTATION_CACHE", cwd.join("cache"))
+        .output()
+        .expect("run fitstation")
+}
+
+#[test]
+fn every_command_runs_with_its_defaults_or_says_in_one_line_what_it_needs() {
+    let d = scratch("commands");
+    let commands: &[&[&str]] = &[
+        &["replay"],
+        &["fit"],
+        &["landmarks"],
+        &["measure"],
+        &["templates"],
+        &["templates", "import"],
+        &["templates", "body"],
+        &["synth"],
+        &["synth-set"],
+        &["eval"],
+        &["bench"],
+        &["version"],
+        &["calibrate"],
+        &["demo-ui"],
+        &["live"],
+        &["replay", "no-such-recording"],
+    ];
+    for args in commands {
+        let o = run_headless(&d, args);
+        let err = text(&o.stderr);
+        if o.status.success() {
+            continue;
+        }
+        let lines: Vec<&str> = err.lines().filter(|l| !l.trim().is_empty()).collect();
+        let usage = err.contains("Usage: fitstation");
+        assert!(
+            usage || (lines.len() == 1 && lines[0].starts_with("Error: ")),
+            "{args:?}: neither ran nor said in one line what it needs:\n{err}"
+        );
+    }
+    // The MakeHuman import names the missing folder and how to fill it.
+    let o = run_headless(&d, &["templates", "import"]);
+    assert!(text(&o.stderr).contains("no MakeHuman assets in"), "{}", text(&o.stderr));
+    let _ = std::fs::remove_dir_all(&d);
+}
