@@ -131,9 +131,11 @@ fn wait_for_temporary(out: &Path, child: &mut std::process::Child, limit: std::t
         if matches!(child.try_wait(), Ok(Some(_))) {
             return;
         }
-        let seen = std::fs::read_dir(out).into_iter().flatten().flatten().any(|e| {
-            fitstation::io::atomic::is_temporary(&e.file_name().to_string_lossy())
-        });
+        let seen = std::fs::read_dir(out)
+            .into_iter()
+            .flatten()
+            .flatten()
+            .any(|e| fitstation::io::atomic::is_temporary(&e.file_name().to_string_lossy()));
         if seen {
             return;
         }

@@ -43,7 +43,10 @@ fn bench_deform_runs_with_no_arguments_on_a_fresh_machine() {
     let o = run_in(&d, &["bench", "deform"]);
     let out = text(&o.stdout);
     assert!(o.status.success(), "{out}\n{}", text(&o.stderr));
-    assert!(out.contains("mesh: 13380 vertices"), "not the template: {out}");
+    assert!(
+        out.contains("mesh: 13380 vertices"),
+        "not the template: {out}"
+    );
     assert!(out.contains("fast decode (rest)"), "{out}");
     // The peer's files go to the cache directory, not a hard-coded temporary path.
     assert!(d.join("cache/bench-deform/mesh.obj").is_file(), "{out}");
@@ -51,7 +54,10 @@ fn bench_deform_runs_with_no_arguments_on_a_fresh_machine() {
     let o = run_in(&d, &["bench", "deform", "--makehuman", "missing/base.obj"]);
     assert!(!o.status.success());
     let err = text(&o.stderr);
-    assert!(err.contains("reading the raw MakeHuman mesh missing/base.obj"), "{err}");
+    assert!(
+        err.contains("reading the raw MakeHuman mesh missing/base.obj"),
+        "{err}"
+    );
     let _ = std::fs::remove_dir_all(&d);
 }
 
@@ -81,7 +87,11 @@ fn no_source_file_hard_codes_a_temporary_data_path() {
             }
         }
     }
-    assert!(hits.is_empty(), "temporary paths in src/:\n{}", hits.join("\n"));
+    assert!(
+        hits.is_empty(),
+        "temporary paths in src/:\n{}",
+        hits.join("\n")
+    );
 }
 
 #[test]
@@ -93,11 +103,17 @@ fn progress_prints_plain_lines_when_stderr_is_not_a_terminal() {
     let o = run_in(&d, &["replay", demo]);
     assert!(o.status.success(), "{}", text(&o.stderr));
     let err = text(&o.stderr);
-    assert!(!err.contains('\r'), "carriage return in piped replay progress: {err:?}");
+    assert!(
+        !err.contains('\r'),
+        "carriage return in piped replay progress: {err:?}"
+    );
     assert!(err.lines().any(|l| l.starts_with("frame")), "{err}");
     let o = run_in(&d, &["eval", demo, demo]);
     let err = text(&o.stderr);
-    assert!(!err.contains('\r'), "carriage return in piped eval progress: {err:?}");
+    assert!(
+        !err.contains('\r'),
+        "carriage return in piped eval progress: {err:?}"
+    );
     assert!(err.contains("] 2/2"), "no progress lines: {err}");
     let _ = std::fs::remove_dir_all(&d);
 }
@@ -120,7 +136,10 @@ fn an_output_path_that_is_an_existing_file_is_said_in_words() {
     std::fs::write(d.join("taken"), b"a file").expect("file");
     let demo = repo().join("recordings/demo");
     let demo = demo.to_str().expect("utf-8 path");
-    says_existing_file(&run_in(&d, &["replay", demo, "--out", "taken"]), "replay --out");
+    says_existing_file(
+        &run_in(&d, &["replay", demo, "--out", "taken"]),
+        "replay --out",
+    );
     says_existing_file(
         &run_in(&d, &["replay", demo, "--record", "taken/rec"]),
         "replay --record",
@@ -128,7 +147,9 @@ fn an_output_path_that_is_an_existing_file_is_said_in_words() {
     says_existing_file(
         &run_in(
             &d,
-            &["fit", "--front", "f.png", "--side", "s.png", "--calib", "c.yaml", "--out", "taken"],
+            &[
+                "fit", "--front", "f.png", "--side", "s.png", "--calib", "c.yaml", "--out", "taken",
+            ],
         ),
         "fit --out",
     );
@@ -142,7 +163,11 @@ fn an_output_path_that_is_an_existing_file_is_said_in_words() {
     std::fs::write(d.join("rec/station.yaml"), b"%YAML:1.0\n").expect("station");
     let o = run_in(&d, &["replay", demo, "--record", "rec"]);
     assert!(!o.status.success());
-    assert!(text(&o.stderr).contains("already holds a recording"), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("already holds a recording"),
+        "{}",
+        text(&o.stderr)
+    );
     let _ = std::fs::remove_dir_all(&d);
 }
 
@@ -195,6 +220,10 @@ fn every_command_runs_with_its_defaults_or_says_in_one_line_what_it_needs() {
     }
     // The MakeHuman import names the missing folder and how to fill it.
     let o = run_headless(&d, &["templates", "import"]);
-    assert!(text(&o.stderr).contains("no MakeHuman assets in"), "{}", text(&o.stderr));
+    assert!(
+        text(&o.stderr).contains("no MakeHuman assets in"),
+        "{}",
+        text(&o.stderr)
+    );
     let _ = std::fs::remove_dir_all(&d);
 }
