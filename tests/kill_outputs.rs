@@ -123,9 +123,11 @@ fn check_outputs(out: &Path, reference: &Reference, run: usize) -> [&'static str
     seen
 }
 
-/// Polls `out` until a temporary of the atomic writer appears (then returns at once),
-/// the child exits, or `limit` passes.
+/// Polls `out` until a temporary of the child's atomic writer appears (then returns at
+/// once), the child exits, or `limit` passes. Temporaries of earlier killed runs do not
+/// count: the name carries the writer's process id.
 fn wait_for_temporary(out: &Path, child: &mut std::process::Child, limit: std::time::Duration) {
+    let mark = format!(".tmp-{}-", child.id());
     let t0 = Instant::now();
     while t0.elapsed() < limit {
         if matches!(child.try_wait(), Ok(Some(_))) {
@@ -135,7 +137,7 @@ fn wait_for_temporary(out: &Path, child: &mut std::process::Child, limit: std::t
             .into_iter()
             .flatten()
             .flatten()
-            .any(|e| fitstation::io::atomic::is_temporary(&e.file_name().to_string_lossy()));
+            .any(|e| e.file_name().to_string_lossy().contains(&mark));
         if seen {
             return;
         }
@@ -188,6 +190,9 @@ fn check_recording(rec: &Path, run: usize, format: &str) -> usize {
             s.len()
         );
         let pairs = s.len();
+        if pairs != f.len() {
+            println!("run {run}: front {} side {}", f.len(), s.len());
+        }
         assert_eq!(s, (0..pairs as u64).collect::<Vec<_>>(), "run {run}: a gap");
         Some(pairs)
     } else {
@@ -280,7 +285,7 @@ fn killed_replay_and_recording_leave_whole_files() {
         let mut child = replay_cmd(&out, &rec, format).spawn().expect("spawn");
         if run % 3 == 0 {
             // Aim at the output writes: kill as soon as a temporary shows up.
-            wait_for_temporary(&out, &mut child, full * 2);
+            wait_for_temporary(&out, &mut child, full * 4);
         } else {
             std::thread::sleep(delay);
         }

@@ -127,18 +127,28 @@ fn process_alive(pid: u32) -> bool {
     Path::new("/proc").join(pid.to_string()).exists()
 }
 
-/// Removes temporaries of `path` left by writers that are gone (killed mid-write).
+/// Removes the temporaries left in `path`'s folder by writers that are gone (killed
+/// mid-write), once per folder and process (a recording writes thousands of frames into
+/// one folder: one scan, not one per frame).
 fn remove_stale_temporaries(path: &Path) {
-    let prefix = temp_prefix(path);
-    let Ok(entries) = std::fs::read_dir(parent_of(path)) else {
+    static SWEPT: std::sync::Mutex<Vec<PathBuf>> = std::sync::Mutex::new(Vec::new());
+    let dir = parent_of(path).to_path_buf();
+    match SWEPT.lock() {
+        Ok(mut swept) if !swept.contains(&dir) => swept.push(dir.clone()),
+        _ => return,
+    }
+    let Ok(entries) = std::fs::read_dir(&dir) else {
         return;
     };
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().into_owned();
-        let Some(rest) = name.strip_prefix(&prefix) else {
+        if !is_temporary(&name) {
             continue;
-        };
-        let pid = rest.split('-').next().and_then(|p| p.parse::<u32>().ok());
+        }
+        let pid = name
+            .rsplit_once(".tmp-")
+            .and_then(|(_, rest)| rest.split('-').next())
+            .and_then(|p| p.parse::<u32>().ok());
         if pid.is_some_and(|p| p != std::process::id() && !process_alive(p)) {
             let _ = std::fs::remove_file(e.path());
         }
