@@ -1,20 +1,21 @@
 //! Criterion benches of the deformers: encoding, a fast decode from rest, a warm refit
-//! and one paper-style sweep, on the MakeHuman body when present (the template stand-in),
-//! else on a generated cylinder. `fitstation bench deform` prints the same figures in one
+//! and one paper-style sweep, on the committed station template (built into the binary)
+//! with its rigid hands, feet and head, else on a generated cylinder. `fitstation bench deform` prints the same figures in one
 //! run, with the paper-style decode to convergence and the libigl peer.
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use fitstation::deform::bench::{load_mesh, problem, rigid_parts, BenchArgs, MAKEHUMAN_BASE_OBJ};
+use fitstation::deform::bench::{load_mesh, problem, rigid_parts, BenchArgs};
 use fitstation::deform::{DecodeOptions, DecoderKind, MeanValueEncoding, MvcDeformer};
 use fitstation::mesh::{shapes, TriMesh};
 use std::hint::black_box;
-use std::path::Path;
 
-/// The MakeHuman body and its rigid extremities, or a cylinder without any.
+/// The station template and its rigid extremities, or a cylinder without any.
 fn mesh() -> (TriMesh, Vec<Vec<u32>>) {
-    if Path::new(MAKEHUMAN_BASE_OBJ).exists() {
+    {
+        // mesh and makehuman both None: the committed template (`bench deform`'s default).
         let args = BenchArgs {
             mesh: None,
+            makehuman: None,
             scale: 1.0,
             out: std::env::temp_dir(),
             no_libigl: true,

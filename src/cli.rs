@@ -7,7 +7,7 @@ use crate::deform::DecoderKind;
 use crate::fit::correspond::Variant;
 use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, FrameSource, Phase, SourceError};
-use crate::recording::Recording;
+use crate::recording::{Recording, RecordingWriter};
 use crate::station::output::write_fit_outputs;
 use crate::station::{default_library, StationOptions, StationProcessor, MEASUREMENT_KEYS};
 use anyhow::{bail, Context};
@@ -87,8 +87,106 @@ pub struct ReplayArgs {
     /// Inject faults into the frames, e.g. 'drop-side@4:2,stall@8:1.5' (see --help).
     #[arg(long, value_name = "SPEC", long_help = crate::capture::inject::SPEC_HELP)]
     pub inject: Option<String>,
+    /// Also record the frame pairs the station is given into this new recording folder
+    /// (station.yaml and recording.yaml first, then each frame written whole, so a cut
+    /// recording replays up to the cut).
+    #[arg(long, conflicts_with = "ui")]
+    pub record: Option<PathBuf>,
+    /// Frame format of --record.
+    #[arg(long, value_enum, default_value = "png", requires = "record")]
+    pub record_format: crate::recording::FrameFormat,
     #[command(flatten)]
     pub fit: FitCliOptions,
+}
+
+/// A frame source that also appends every pair it gives to a new recording
+/// (`replay --record`); a failed write is said once and recording stops, the replay
+/// goes on.
+pub struct RecordingTee<'a> {
+    inner: &'a mut dyn FrameSource,
+    writer: Option<RecordingWriter>,
+    dir: PathBuf,
+}
+
+impl<'a> RecordingTee<'a> {
+    /// Starts a recording in `dir` (which must not hold one) with `inner`'s
+    /// calibration and frame rate.
+    ///
+    /// # Errors
+    /// `dir` holds a recording, is a file, or cannot be written.
+    pub fn start(
+        inner: &'a mut dyn FrameSource,
+        dir: &Path,
+        format: crate::recording::FrameFormat,
+        stature_m: Option<f64>,
+    ) -> anyhow::Result<Self> {
+        if dir.join(crate::recording::STATION_FILE).exists() {
+            bail!(
+                "{} already holds a recording (station.yaml exists): choose a new folder for --record",
+                dir.display()
+            );
+        }
+        let calib = inner
+            .calibration()
+            .context("the source has no calibration to record with")?
+            .clone();
+        let meta = crate::recording::RecordingMeta {
+            fps: inner.fps().unwrap_or(crate::recording::DEFAULT_FPS),
+            stature_m,
+            notes: Some(format!(
+                "recorded by fitstation replay from {}",
+                inner.describe()
+            )),
+            date: None,
+        };
+        let writer = RecordingWriter::with_meta(dir, &calib, format, meta)
+            .with_context(|| format!("cannot record to {}", dir.display()))?;
+        Ok(RecordingTee {
+            inner,
+            writer: Some(writer),
+            dir: dir.to_path_buf(),
+        })
+    }
+
+    /// Closes the recording (video index, recording.yaml); returns the pairs written.
+    ///
+    /// # Errors
+    /// The closing writes failed.
+    pub fn finish(mut self) -> anyhow::Result<usize> {
+        let Some(w) = self.writer.take() else {
+            return Ok(0);
+        };
+        let n = w.len();
+        w.finish()
+            .with_context(|| format!("cannot finish the recording {}", self.dir.display()))?;
+        Ok(n)
+    }
+}
+
+impl FrameSource for RecordingTee<'_> {
+    fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
+        let r = self.inner.next_pair();
+        if let (Ok(Some(pair)), Some(w)) = (&r, self.writer.as_mut()) {
+            if let Err(e) = w.push_pair(&pair.front, &pair.side) {
+                eprintln!(
+                    "warning: recording to {} stopped after {} frame pairs: {e}",
+                    self.dir.display(),
+                    w.len()
+                );
+                self.writer = None;
+            }
+        }
+        r
+    }
+    fn calibration(&self) -> Option<&StationCalibration> {
+        self.inner.calibration()
+    }
+    fn fps(&self) -> Option<f64> {
+        self.inner.fps()
+    }
+    fn describe(&self) -> String {
+        self.inner.describe()
+    }
 }
 
 /// Frame pairs from a recording, in order; unreadable frames are skipped and said.
@@ -173,6 +271,8 @@ pub fn run_offline(
     let mut series = Vec::new();
     let mut last = None;
     let mut n = 0usize;
+    let style = crate::io::progress::ProgressStyle::for_stderr();
+    let mut shown_phase = None;
     loop {
         if max_frames.is_some_and(|m| n >= m) {
             break;
@@ -200,11 +300,7 @@ pub fn run_offline(
             faults.station(pair.index, pair.timestamp_s, f);
         }
         if progress {
-            eprint!(
-                "\rframe {:>4}  {:<20}",
-                pair.index,
-                format!("{:?}", snap.phase)
-            );
+            show_frame_progress(style, pair.index, snap.phase, &mut shown_phase);
         }
         if snap.phase != Phase::LearningBackdrop {
             timings.add_all(&snap.timings_ms);
@@ -224,7 +320,7 @@ pub fn run_offline(
         }
         last = Some(snap);
     }
-    if progress {
+    if progress && style == crate::io::progress::ProgressStyle::InPlace {
         eprintln!();
     }
     let mut meas = serde_json::Map::new();
@@ -327,6 +423,29 @@ impl FaultLog {
     }
 }
 
+/// Shows replay progress: every frame redrawn in place on a terminal; otherwise one
+/// plain line each time the phase changes (a log gets no carriage returns).
+fn show_frame_progress(
+    style: crate::io::progress::ProgressStyle,
+    index: u64,
+    phase: Phase,
+    shown: &mut Option<Phase>,
+) {
+    use crate::io::progress::{show, ProgressStyle};
+    match style {
+        ProgressStyle::InPlace => show(
+            style,
+            &format!("frame {index:>4}  {:<20}", format!("{phase:?}")),
+            false,
+        ),
+        ProgressStyle::Lines if *shown != Some(phase) => {
+            show(style, &format!("frame {index:>4}  {phase:?}"), false)
+        }
+        ProgressStyle::Lines => {}
+    }
+    *shown = Some(phase);
+}
+
 /// The stage of `timings_ms` timed once per run, not per frame pair: the fitted body's
 /// landmarks.
 const ONCE_PER_RUN_STAGE: &str = "body_landmarks";
@@ -377,6 +496,7 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
         .as_deref()
         .map(crate::capture::inject::parse_spec)
         .transpose()?;
+    check_outputs(args.out.as_deref(), args.record.as_deref())?;
     let mut source = RecordingSource::open(&args.recording)?;
     for w in source.recording().warnings() {
         eprintln!("warning: {w}");
@@ -424,12 +544,32 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
         eprint!("{summary}");
         return Ok(());
     }
+    let stature_m = source.recording().metadata().stature_m;
     let mut source: Box<dyn FrameSource> = match faults {
         Some(f) => Box::new(FaultInjector::new(Box::new(source), f).log_to_stderr(true)),
         None => Box::new(source),
     };
-    let summary = run_offline(source.as_mut(), &mut proc_, args.max_frames, !args.fit.json);
+    let summary = match &args.record {
+        None => run_offline(source.as_mut(), &mut proc_, args.max_frames, !args.fit.json),
+        Some(dir) => {
+            let mut tee = RecordingTee::start(source.as_mut(), dir, args.record_format, stature_m)?;
+            let summary = run_offline(&mut tee, &mut proc_, args.max_frames, !args.fit.json);
+            let n = tee.finish()?;
+            eprintln!("recorded {n} frame pairs to {}", dir.display());
+            summary
+        }
+    };
     finish(summary, args.out.as_deref(), args.fit.json)
+}
+
+/// Says before any work when an output folder is an existing file.
+fn check_outputs(out: Option<&Path>, record: Option<&Path>) -> anyhow::Result<()> {
+    for (flag, dir) in [("--out", out), ("--record", record)] {
+        if let Some(d) = dir {
+            crate::io::atomic::check_dir(d).map_err(|e| anyhow::anyhow!("{flag}: {e}"))?;
+        }
+    }
+    Ok(())
 }
 
 fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result<()> {
@@ -531,6 +671,7 @@ use crate::landmarks::cli::load_rgb;
 
 /// `fitstation fit` on two stills (with optional empty-scene images).
 pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
+    check_outputs(Some(&args.out), None)?;
     let calib = StationCalibration::load(&args.calib)
         .with_context(|| format!("cannot read calibration {}", args.calib.display()))?;
     let front = load_rgb(&args.front)?;

@@ -19,6 +19,7 @@ pub mod deform;
 pub mod eval;
 pub mod fit;
 pub mod imgproc;
+pub mod io;
 pub mod landmarks;
 pub mod measure;
 pub mod mesh;

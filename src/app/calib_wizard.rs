@@ -541,9 +541,6 @@ pub fn save_safely(
 ) -> Result<SaveOutcome, String> {
     let err = |p: &Path, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
     if !out.exists() {
-        if let Some(d) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-            std::fs::create_dir_all(d).map_err(|e| err(d, &e))?;
-        }
         station.save(out).map_err(|e| err(out, &e))?;
         return Ok(SaveOutcome::Written {
             path: out.to_path_buf(),
@@ -572,7 +569,7 @@ pub fn save_safely(
         });
     }
     let backup = out.with_extension("yaml.bak");
-    std::fs::copy(out, &backup).map_err(|e| err(&backup, &e))?;
+    crate::io::atomic::copy(out, &backup).map_err(|e| err(&backup, &e.cause()))?;
     station.save(out).map_err(|e| err(out, &e))?;
     Ok(SaveOutcome::Written {
         path: out.to_path_buf(),

@@ -16,6 +16,8 @@ pub enum ExportError {
         path: PathBuf,
         source: std::io::Error,
     },
+    #[error(transparent)]
+    Output(#[from] crate::io::atomic::AtomicError),
     #[error("nothing to export: {0}")]
     Nothing(&'static str),
 }
@@ -46,10 +48,7 @@ pub fn export_avatar(
     format: AvatarFormat,
 ) -> Result<PathBuf, ExportError> {
     let mesh = mesh.ok_or(ExportError::Nothing("no avatar has been fitted yet"))?;
-    std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
+    crate::io::atomic::create_dir(dir)?;
     let path = dir.join(format!("avatar.{}", format.extension()));
     write_mesh(&path, mesh)?;
     Ok(path)
@@ -110,21 +109,12 @@ pub fn export_measurements(
     if m.is_empty() {
         return Err(ExportError::Nothing("no measurements yet"));
     }
-    std::fs::create_dir_all(dir).map_err(|source| ExportError::Io {
-        path: dir.to_path_buf(),
-        source,
-    })?;
+    crate::io::atomic::create_dir(dir)?;
     let json = dir.join("measurements.json");
     let text = serde_json::to_string_pretty(&measurements_json(m)).unwrap_or_default();
-    std::fs::write(&json, text).map_err(|source| ExportError::Io {
-        path: json.clone(),
-        source,
-    })?;
     let csv = dir.join("measurements.csv");
-    std::fs::write(&csv, measurements_csv(m)).map_err(|source| ExportError::Io {
-        path: csv.clone(),
-        source,
-    })?;
+    let csv_text = measurements_csv(m);
+    crate::io::atomic::write_all(&[(&json, text.as_bytes()), (&csv, csv_text.as_bytes())])?;
     Ok([json, csv])
 }
 

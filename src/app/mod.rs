@@ -1754,11 +1754,7 @@ fn save_screenshot(
     for (px, c) in rgb.pixels_mut().zip(img.pixels.iter()) {
         *px = image::Rgb([c.r(), c.g(), c.b()]);
     }
-    if let Some(d) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(d).map_err(|e| format!("{}: {e}", d.display()))?;
-    }
-    rgb.save(path)
-        .map_err(|e| format!("{}: {e}", path.display()))?;
+    crate::io::atomic::save_image(path, &rgb).map_err(|e| e.to_string())?;
     let px =
         |r: Option<Rect>| r.map(|r| [r.min.x * ppp, r.min.y * ppp, r.max.x * ppp, r.max.y * ppp]);
     let json = serde_json::json!({
@@ -1767,8 +1763,8 @@ fn save_screenshot(
         "avatar_rgb": avatar3d::AVATAR_RGB,
     });
     let lp = layout_path(path);
-    std::fs::write(&lp, serde_json::to_string_pretty(&json).unwrap_or_default())
-        .map_err(|e| format!("{}: {e}", lp.display()))?;
+    crate::io::atomic::write(&lp, serde_json::to_string_pretty(&json).unwrap_or_default())
+        .map_err(|e| e.to_string())?;
     Ok(())
 }
 
@@ -1904,8 +1900,8 @@ mod tests {
     #[test]
     fn layout_path_sits_beside_the_screenshot() {
         assert_eq!(
-            layout_path(Path::new("/tmp/a/shot.png")),
-            PathBuf::from("/tmp/a/shot.layout.json")
+            layout_path(Path::new("shots/a/shot.png")),
+            PathBuf::from("shots/a/shot.layout.json")
         );
     }
 }

@@ -12,7 +12,6 @@ use crate::camera::StationCalibration;
 use crate::pipeline::FramePair;
 use image::codecs::png::{CompressionType, FilterType, PngEncoder};
 use image::{ImageEncoder, RgbImage};
-use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::mpsc::{sync_channel, SyncSender, TrySendError};
@@ -31,6 +30,8 @@ pub enum RecordError {
     Encode { path: PathBuf, msg: String },
     #[error("{0} already holds a recording (front/ exists): choose a new folder")]
     NotEmpty(PathBuf),
+    #[error(transparent)]
+    Output(#[from] crate::io::atomic::AtomicError),
 }
 
 /// Writes frame pairs into a recording folder, numbering from 0.
@@ -58,19 +59,17 @@ impl RecordingWriter {
             return Err(RecordError::NotEmpty(dir.to_path_buf()));
         }
         for sub in ["front", "side"] {
-            let p = dir.join(sub);
-            std::fs::create_dir_all(&p).map_err(io_err(&p))?;
+            crate::io::atomic::create_dir(&dir.join(sub))?;
         }
         if let Some(cal) = calibration {
-            let p = dir.join("station.yaml");
-            std::fs::write(&p, cal.to_yaml_string()).map_err(io_err(&p))?;
+            crate::io::atomic::write(&dir.join("station.yaml"), cal.to_yaml_string())?;
         }
         let p = dir.join("recording.yaml");
         let mut meta = String::from("# written by fitstation (operator recording)\n");
         if let Some(fps) = fps {
             meta.push_str(&format!("fps: {fps}\n"));
         }
-        std::fs::write(&p, meta).map_err(io_err(&p))?;
+        crate::io::atomic::write(&p, meta)?;
         Ok(RecordingWriter {
             dir: dir.to_path_buf(),
             next: 0,
@@ -96,20 +95,23 @@ impl RecordingWriter {
     }
 }
 
+/// Writes one frame atomically: a recording cut mid-frame keeps every whole frame and
+/// no half one (the reader skips an index that only one view has).
 fn write_png(path: &Path, img: &RgbImage) -> Result<(), RecordError> {
-    let file = std::fs::File::create(path).map_err(io_err(path))?;
-    // Fast compression: a 720p frame pair must keep up with the cameras.
-    PngEncoder::new_with_quality(BufWriter::new(file), CompressionType::Fast, FilterType::Sub)
-        .write_image(
-            img.as_raw(),
-            img.width(),
-            img.height(),
-            image::ExtendedColorType::Rgb8,
-        )
-        .map_err(|e| RecordError::Encode {
-            path: path.to_path_buf(),
-            msg: e.to_string(),
-        })
+    crate::io::atomic::write_with(path, |w| {
+        // Fast compression: a 720p frame pair must keep up with the cameras.
+        PngEncoder::new_with_quality(&mut *w, CompressionType::Fast, FilterType::Sub)
+            .write_image(
+                img.as_raw(),
+                img.width(),
+                img.height(),
+                image::ExtendedColorType::Rgb8,
+            )
+            .map_err(|e| RecordError::Encode {
+                path: path.to_path_buf(),
+                msg: e.to_string(),
+            })
+    })
 }
 
 /// Pairs waiting for the writer thread; more are dropped (and counted).

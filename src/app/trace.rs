@@ -56,7 +56,7 @@ pub fn dump() {
             .collect(),
         Err(_) => return,
     };
-    if let Err(e) = std::fs::write(&t.path, text) {
+    if let Err(e) = crate::io::atomic::write(&t.path, text) {
         eprintln!("cannot write the timeline {}: {e}", t.path.display());
     }
 }

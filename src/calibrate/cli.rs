@@ -374,7 +374,7 @@ fn write_safely(
         return Ok(new_path);
     }
     let backup = out.with_extension("yaml.bak");
-    std::fs::copy(out, &backup)
+    crate::io::atomic::copy(out, &backup)
         .with_context(|| format!("backing up {} to {}", out.display(), backup.display()))?;
     if !worse.is_empty() {
         println!(

@@ -604,10 +604,10 @@ impl SyntheticStation {
         let err = |p: &std::path::Path, e: &dyn std::fmt::Display| format!("{}: {e}", p.display());
         for (sub, imgs) in [("front", &self.front_views), ("side", &self.side_views)] {
             let d = dir.join(sub);
-            std::fs::create_dir_all(&d).map_err(|e| err(&d, &e))?;
+            crate::io::atomic::create_dir(&d).map_err(|e| e.to_string())?;
             for (i, img) in imgs.iter().enumerate() {
                 let p = d.join(format!("view_{i:02}.png"));
-                img.save(&p).map_err(|e| err(&p, &e))?;
+                crate::io::atomic::save_image(&p, img).map_err(|e| err(&p, &e.cause()))?;
             }
         }
         for (name, img) in [
@@ -615,7 +615,7 @@ impl SyntheticStation {
             ("station_side.png", &self.station_side),
         ] {
             let p = dir.join(name);
-            img.save(&p).map_err(|e| err(&p, &e))?;
+            crate::io::atomic::save_image(&p, img).map_err(|e| err(&p, &e.cause()))?;
         }
         let p = dir.join("truth.yaml");
         self.truth.save(&p).map_err(|e| err(&p, &e))

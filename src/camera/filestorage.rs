@@ -299,12 +299,11 @@ impl StationCalibration {
         s
     }
 
-    /// Writes `station.yaml` atomically (temporary file + rename).
+    /// Writes `station.yaml` atomically ([`crate::io::atomic`]: temporary file, fsync,
+    /// rename).
     pub fn save(&self, path: &Path) -> Result<(), CameraError> {
-        let name = path.display().to_string();
-        let tmp = path.with_extension("yaml.tmp");
-        std::fs::write(&tmp, self.to_yaml_string()).map_err(|e| ferr(&name, e.to_string()))?;
-        std::fs::rename(&tmp, path).map_err(|e| ferr(&name, e.to_string()))
+        crate::io::atomic::write(path, self.to_yaml_string())
+            .map_err(|e| ferr(&path.display().to_string(), e.cause()))
     }
 }
 

@@ -572,7 +572,10 @@ mod tests {
             "{errors:?}"
         );
         let pairs: Vec<(f64, u8, u8)> = out.iter().flatten().copied().collect();
-        assert!(pairs.iter().filter(|p| p.0 > 1.45).count() >= 3, "{pairs:?}");
+        assert!(
+            pairs.iter().filter(|p| p.0 > 1.45).count() >= 3,
+            "{pairs:?}"
+        );
     }
 
     #[test]

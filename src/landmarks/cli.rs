@@ -81,7 +81,7 @@ pub fn run(args: LandmarksArgs) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.overlay {
         let img = overlay(&front, &side, &res);
-        img.save(path)
+        crate::io::atomic::save_image(path, &img)
             .with_context(|| format!("cannot write overlay {}", path.display()))?;
     }
     Ok(())

@@ -5,6 +5,7 @@
 //! file holds (the station's own files hold metres).
 
 use super::TriMesh;
+use crate::io::atomic::AtomicFile;
 use glam::DVec3;
 use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
@@ -512,13 +513,20 @@ impl PlyBody<'_> {
     }
 }
 
-fn create(path: &Path) -> Result<std::io::BufWriter<std::fs::File>, MeshIoError> {
-    std::fs::File::create(path)
-        .map(std::io::BufWriter::new)
-        .map_err(|source| MeshIoError::Io {
-            file: path.to_path_buf(),
-            source,
-        })
+/// Opens an output mesh file under a temporary name ([`crate::io::atomic`]).
+fn create(path: &Path) -> Result<AtomicFile, MeshIoError> {
+    AtomicFile::create(path).map_err(|e| MeshIoError::Io {
+        file: path.to_path_buf(),
+        source: e.into(),
+    })
+}
+
+/// Puts a written mesh file in place (fsync, rename).
+fn commit(w: AtomicFile, path: &Path) -> Result<(), MeshIoError> {
+    w.commit().map_err(|e| MeshIoError::Io {
+        file: path.to_path_buf(),
+        source: e.into(),
+    })
 }
 
 fn wio(path: &Path) -> impl Fn(std::io::Error) -> MeshIoError + '_ {
@@ -532,7 +540,7 @@ fn wio(path: &Path) -> impl Fn(std::io::Error) -> MeshIoError + '_ {
 pub fn write_obj(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
     let mut w = create(path)?;
     write_obj_to(&mut w, mesh).map_err(wio(path))?;
-    w.flush().map_err(wio(path))
+    commit(w, path)
 }
 
 pub fn write_obj_to(w: &mut impl Write, mesh: &TriMesh) -> std::io::Result<()> {
@@ -572,7 +580,8 @@ pub fn write_ply(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
         }
         w.flush()
     })()
-    .map_err(wio(path))
+    .map_err(wio(path))?;
+    commit(w, path)
 }
 
 /// Writes a binary glTF 2.0 file (one mesh, positions + normals + indices, metres, Y up).
@@ -646,7 +655,8 @@ pub fn write_glb(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
         w.write_all(&bin)?;
         w.flush()
     })()
-    .map_err(wio(path))
+    .map_err(wio(path))?;
+    commit(w, path)
 }
 
 #[cfg(test)]

@@ -32,7 +32,7 @@ use openh264::encoder::{
 use openh264::formats::{RgbSliceU8, YUVBuffer, YUVSource};
 use openh264::OpenH264API;
 use std::fs::File;
-use std::io::{BufReader, BufWriter, Read, Seek, SeekFrom};
+use std::io::{BufReader, Read, Seek, SeekFrom};
 use std::path::{Path, PathBuf};
 
 /// Media timescale of the written tracks (ticks per second).
@@ -96,8 +96,10 @@ pub fn annexb_nals(stream: &[u8]) -> Vec<&[u8]> {
 pub struct Mp4VideoWriter {
     path: PathBuf,
     encoder: Encoder,
-    mp4: Option<mp4::Mp4Writer<BufWriter<File>>>,
-    file: Option<BufWriter<File>>,
+    /// Unbuffered: each sample reaches the file as it is written, so a recording cut
+    /// before its index is recovered up to its last whole sample.
+    mp4: Option<mp4::Mp4Writer<File>>,
+    file: Option<File>,
     width: u32,
     height: u32,
     frame_ticks: u32,
@@ -127,15 +129,14 @@ impl Mp4VideoWriter {
             .intra_frame_period(IntraFramePeriod::from_num_frames(IDR_PERIOD_FRAMES));
         let encoder = Encoder::with_api_config(openh264::OpenH264API::from_source(), config)
             .map_err(|e| verr(path, format!("H.264 encoder: {e}")))?;
-        let file = File::create(path).map_err(|source| VideoError::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
+        // A stream, not atomic: a file cut before its index is recovered by the reader.
+        let file =
+            crate::io::atomic::create_recoverable(path).map_err(|e| verr(path, e.cause()))?;
         Ok(Mp4VideoWriter {
             path: path.to_path_buf(),
             encoder,
             mp4: None,
-            file: Some(BufWriter::new(file)),
+            file: Some(file),
             width,
             height,
             frame_ticks: (TIMESCALE as f64 / fps).round() as u32,
@@ -245,6 +246,10 @@ impl Mp4VideoWriter {
         w.write_end().map_err(|e| verr(&path, e.to_string()))?;
         let mut inner = w.into_writer();
         std::io::Write::flush(&mut inner).map_err(|source| VideoError::Io {
+            file: path.clone(),
+            source,
+        })?;
+        inner.sync_all().map_err(|source| VideoError::Io {
             file: path.clone(),
             source,
         })?;

@@ -38,7 +38,7 @@ pub enum RecordingError {
         path: PathBuf,
         source: std::io::Error,
     },
-    #[error("{0}")]
+    #[error(transparent)]
     Calibration(#[from] CameraError),
     #[error(
         "{dir}: no frames (expected front/ and side/ frame folders or front.mp4 and side.mp4)"
@@ -48,10 +48,12 @@ pub enum RecordingError {
     OutOfRange { k: usize, len: usize },
     #[error("{path}: {msg}")]
     Image { path: PathBuf, msg: String },
-    #[error("{0}")]
+    #[error(transparent)]
     Video(#[from] VideoError),
     #[error("{path}: {msg}")]
     Meta { path: PathBuf, msg: String },
+    #[error(transparent)]
+    Output(#[from] crate::io::atomic::AtomicError),
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> RecordingError + '_ {
@@ -390,20 +392,23 @@ impl RecordingWriter {
         Self::with_meta(dir, calibration, format, RecordingMeta::default())
     }
 
-    /// As [`RecordingWriter::new`], with the metadata `finish` writes to `recording.yaml`.
+    /// As [`RecordingWriter::new`], with the metadata written to `recording.yaml` at once
+    /// (so a recording cut before `finish` replays at its frame rate) and again by
+    /// `finish`.
     pub fn with_meta(
         dir: &Path,
         calibration: &StationCalibration,
         format: FrameFormat,
         meta: RecordingMeta,
     ) -> Result<Self, RecordingError> {
-        std::fs::create_dir_all(dir).map_err(io_err(dir))?;
+        crate::io::atomic::create_dir(dir)?;
         calibration.save(&dir.join(STATION_FILE))?;
+        crate::io::atomic::write(&dir.join(META_FILE), meta.to_yaml())?;
         let videos = match format {
             FrameFormat::Png | FrameFormat::Jpeg => {
                 for v in View::BOTH {
                     let d = dir.join(v.name());
-                    std::fs::create_dir_all(&d).map_err(io_err(&d))?;
+                    crate::io::atomic::create_dir(&d)?;
                 }
                 None
             }
@@ -463,33 +468,32 @@ impl RecordingWriter {
         self.count == 0
     }
 
-    /// Closes the videos (writes their index) and writes `recording.yaml`.
+    /// Closes the videos (writes their index) and rewrites `recording.yaml`.
     pub fn finish(mut self) -> Result<PathBuf, RecordingError> {
         if let Some((f, s)) = self.videos.take() {
             f.finish()?;
             s.finish()?;
         }
-        let p = self.dir.join(META_FILE);
-        std::fs::write(&p, self.meta.to_yaml()).map_err(io_err(&p))?;
+        crate::io::atomic::write(&self.dir.join(META_FILE), self.meta.to_yaml())?;
         Ok(self.dir)
     }
 }
 
+/// Writes one frame atomically (a cut write leaves no frame, never half of one).
 fn save_image(path: &Path, img: &RgbImage, fmt: FrameFormat) -> Result<(), RecordingError> {
-    let file = std::fs::File::create(path).map_err(io_err(path))?;
-    let mut w = std::io::BufWriter::new(file);
-    let r = match fmt {
-        FrameFormat::Jpeg => {
-            image::codecs::jpeg::JpegEncoder::new_with_quality(&mut w, JPEG_QUALITY)
-                .encode_image(img)
-        }
-        _ => img.write_to(&mut w, image::ImageFormat::Png),
-    };
-    r.map_err(|e| RecordingError::Image {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    })?;
-    std::io::Write::flush(&mut w).map_err(io_err(path))
+    crate::io::atomic::write_with(path, |w| {
+        let r = match fmt {
+            FrameFormat::Jpeg => {
+                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut *w, JPEG_QUALITY)
+                    .encode_image(img)
+            }
+            _ => img.write_to(&mut *w, image::ImageFormat::Png),
+        };
+        r.map_err(|e| RecordingError::Image {
+            path: path.to_path_buf(),
+            msg: e.to_string(),
+        })
+    })
 }
 
 #[cfg(test)]

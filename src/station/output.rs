@@ -1,11 +1,13 @@
 //! What a fit writes (`../shared/spec/formats.md`, "What a fit writes"): `avatar.obj`
 //! (metres, station frame, template vertex order) and `report.json`.
 //!
-//! Outputs are written atomically: files go to a temporary folder beside `--out` and are
-//! renamed into place only when all of them were written, so a failed run never leaves a
-//! half-written result and never destroys an earlier good one.
+//! Outputs are written atomically ([`crate::io::atomic`]): both files are written and
+//! fsynced under temporary names beside their final ones, then renamed into place, so a
+//! failed or killed run never leaves a half-written file and never destroys an earlier
+//! good one (each file is the old one or the complete new one).
 
-use crate::mesh::{io::write_obj, TriMesh};
+use crate::io::atomic::{self, AtomicError};
+use crate::mesh::{io::write_obj_to, TriMesh};
 use std::path::{Path, PathBuf};
 
 /// Errors writing the outputs.
@@ -13,54 +15,33 @@ use std::path::{Path, PathBuf};
 pub enum OutputError {
     #[error("{path}: {msg}")]
     Io { path: PathBuf, msg: String },
-}
-
-fn io_err(path: &Path) -> impl Fn(std::io::Error) -> OutputError + '_ {
-    move |e| OutputError::Io {
-        path: path.to_path_buf(),
-        msg: e.to_string(),
-    }
+    #[error(transparent)]
+    Output(#[from] AtomicError),
 }
 
 /// Writes `avatar.obj` and `report.json` into `out` atomically.
+///
+/// # Errors
+/// `out` is an existing file (said in words), or a write failed.
 pub fn write_fit_outputs(
     out: &Path,
     avatar: &TriMesh,
     report: &serde_json::Value,
 ) -> Result<(), OutputError> {
-    let parent = out
-        .parent()
-        .filter(|p| !p.as_os_str().is_empty())
-        .unwrap_or(Path::new("."));
-    std::fs::create_dir_all(parent).map_err(io_err(parent))?;
-    let name = out
-        .file_name()
-        .map(|n| n.to_string_lossy().to_string())
-        .unwrap_or_else(|| "out".into());
-    let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
-    if tmp.exists() {
-        std::fs::remove_dir_all(&tmp).map_err(io_err(&tmp))?;
-    }
-    std::fs::create_dir_all(&tmp).map_err(io_err(&tmp))?;
-    let result = (|| {
-        write_obj(&tmp.join("avatar.obj"), avatar).map_err(|e| OutputError::Io {
-            path: tmp.join("avatar.obj"),
-            msg: e.to_string(),
-        })?;
-        let text = serde_json::to_string_pretty(report).map_err(|e| OutputError::Io {
-            path: tmp.join("report.json"),
-            msg: e.to_string(),
-        })?;
-        std::fs::write(tmp.join("report.json"), text + "\n")
-            .map_err(io_err(&tmp.join("report.json")))?;
-        std::fs::create_dir_all(out).map_err(io_err(out))?;
-        for f in ["avatar.obj", "report.json"] {
-            std::fs::rename(tmp.join(f), out.join(f)).map_err(io_err(&out.join(f)))?;
-        }
-        Ok(())
-    })();
-    let _ = std::fs::remove_dir_all(&tmp);
-    result
+    atomic::create_dir(out)?;
+    let obj_path = out.join("avatar.obj");
+    let mut obj = Vec::new();
+    write_obj_to(&mut obj, avatar).map_err(|e| OutputError::Io {
+        path: obj_path.clone(),
+        msg: e.to_string(),
+    })?;
+    let json_path = out.join("report.json");
+    let text = serde_json::to_string_pretty(report).map_err(|e| OutputError::Io {
+        path: json_path.clone(),
+        msg: e.to_string(),
+    })? + "\n";
+    atomic::write_all(&[(&obj_path, &obj), (&json_path, text.as_bytes())])?;
+    Ok(())
 }
 
 #[cfg(test)]

@@ -96,13 +96,15 @@ pub enum SynthError {
     Subject(#[from] subject::SubjectError),
     #[error("{0}")]
     Measure(#[from] crate::measure::MeasureError),
-    #[error("{0}")]
+    #[error(transparent)]
     Recording(#[from] RecordingError),
     #[error("{path}: {source}")]
     Io {
         path: PathBuf,
         source: std::io::Error,
     },
+    #[error(transparent)]
+    Output(#[from] crate::io::atomic::AtomicError),
     #[error("{0}")]
     Invalid(String),
 }
@@ -487,7 +489,7 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
     let measurements = if cfg.truth {
         // The truth is the mesh as stored (OBJ keeps micrometres): write it, read it
         // back, and measure and render that, so re-measuring mesh.obj gives truth.json.
-        std::fs::create_dir_all(&tdir).map_err(io_err(&tdir))?;
+        crate::io::atomic::create_dir(&tdir)?;
         let obj = tdir.join("mesh.obj");
         crate::mesh::io::write_obj(&obj, &truth_mesh)
             .map_err(|e| SynthError::Invalid(e.to_string()))?;
@@ -548,7 +550,7 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
     if cfg.truth {
         for v in View::BOTH {
             let d = tdir.join("masks").join(v.name());
-            std::fs::create_dir_all(&d).map_err(io_err(&d))?;
+            crate::io::atomic::create_dir(&d)?;
         }
     }
     let total = cfg.empty_frames + cfg.subject_frames;
@@ -635,8 +637,7 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
                     .join("masks")
                     .join(vr.view.name())
                     .join(format!("{k:06}.png"));
-                mask.save(&p)
-                    .map_err(|e| SynthError::Invalid(format!("{}: {e}", p.display())))?;
+                crate::io::atomic::save_image(&p, &mask)?;
                 tf.mask_area_px.insert(vr.view.name().into(), area);
                 if has_subject {
                     let mut lm = BTreeMap::new();
@@ -675,7 +676,7 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
         let p = tdir.join("truth.json");
         let text =
             serde_json::to_string_pretty(&truth).map_err(|e| SynthError::Invalid(e.to_string()))?;
-        std::fs::write(&p, text).map_err(io_err(&p))?;
+        crate::io::atomic::write(&p, text)?;
     }
     Ok(SynthSummary {
         recording: out.to_path_buf(),
@@ -967,7 +968,7 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
             Some(ansur::AnsurTable::load(&dir)?)
         }
     };
-    std::fs::create_dir_all(&args.out)?;
+    crate::io::atomic::create_dir(&args.out)?;
     for i in 0..args.count {
         let mut cfg = match &table {
             None => set_member(args.first_seed, i, args.count),

