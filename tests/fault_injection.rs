@@ -9,8 +9,9 @@
 //! the subject stands on the mark at 0.4-0.8 s, 1.2-1.6 s, 2.0-2.4 s, 2.8-3.2 s.
 
 use fitstation::capture::inject::{parse_spec, FaultInjector};
+use fitstation::cli::RecordingSource;
 use fitstation::pipeline::{FramePair, FrameProcessor, FrameSource, Phase, SourceError};
-use fitstation::station::cli::{default_library, RecordingSource};
+use fitstation::station::default_library;
 use fitstation::station::{StationOptions, StationProcessor};
 use std::collections::{HashMap, HashSet};
 use std::hash::{Hash, Hasher};
