@@ -50,6 +50,10 @@ pub struct FusionOptions {
     /// Largest log-odds the backdrop's evidence can add (a changed colour may be a
     /// shadow: the learned model still has to say person).
     pub cap: f32,
+    /// In the shadow zone (the floor around the mark, where the person's own shadow
+    /// falls and the learned mask blurs the feet into it), below this probability a cell
+    /// is never made person.
+    pub zone_min_prob: f32,
 }
 
 impl Default for FusionOptions {
@@ -59,6 +63,7 @@ impl Default for FusionOptions {
             ratio_mid: 0.7,
             slope: 10.0,
             cap: 1.5,
+            zone_min_prob: 0.9,
         }
     }
 }
@@ -69,19 +74,41 @@ fn logit(p: f32) -> f32 {
     (p / (1.0 - p)).ln()
 }
 
-/// The fusion rule as a table: per 8-bit probability level, the least squared distance
-/// ratio `r^2` that makes a cell person (`f32::INFINITY`: never).
+/// The fusion rule as tables: per 8-bit probability level, the least squared distance
+/// ratio `r^2` that makes a cell person (`f32::INFINITY`: never), off and in the shadow
+/// zone.
 #[derive(Debug, Clone)]
 pub struct FusionRule {
     pub opts: FusionOptions,
     min_ratio2: [f32; 256],
+    zone_min_ratio2: [f32; 256],
 }
 
 impl FusionRule {
-    /// The table of `opts`.
+    /// The tables of `opts`.
     pub fn new(opts: FusionOptions) -> Self {
         let min_ratio2 = std::array::from_fn(|k| min_ratio2_of(k as f32 / 255.0, &opts));
-        FusionRule { opts, min_ratio2 }
+        let zone = FusionOptions {
+            min_prob: opts.min_prob.max(opts.zone_min_prob),
+            ..opts
+        };
+        let zone_min_ratio2 = std::array::from_fn(|k| min_ratio2_of(k as f32 / 255.0, &zone));
+        FusionRule {
+            opts,
+            min_ratio2,
+            zone_min_ratio2,
+        }
+    }
+
+    /// The least `r^2` making a cell of probability level `prob_q` person, in the shadow
+    /// zone or off it.
+    #[inline(always)]
+    pub fn min_ratio2_at(&self, prob_q: u8, in_zone: bool) -> f32 {
+        if in_zone {
+            self.zone_min_ratio2[prob_q as usize]
+        } else {
+            self.min_ratio2[prob_q as usize]
+        }
     }
 
     /// True when a cell the backdrop model does not call foreground is person, from its
@@ -277,11 +304,13 @@ impl BackgroundModel {
         let g = self.gain;
         let m = &self.coarse_model;
         let mut fused = 0;
+        // Without a calibration the whole frame is zone: no cell is told apart.
+        let zoned = !self.zone_everywhere;
         for cy in y0..y1 {
             let prow = &prior.prob[(cy - y0) * (x1 - x0)..(cy - y0 + 1) * (x1 - x0)];
             for (cx, &pq) in (x0..x1).zip(prow) {
-                let need = self.fusion.min_ratio2(pq);
                 let k = cy * cw + cx;
+                let need = self.fusion.min_ratio2_at(pq, zoned && m.zone[k] != 0);
                 if need.is_infinite() || coarse[k] == MASK_ON {
                     continue;
                 }
@@ -305,10 +334,13 @@ impl BackgroundModel {
     /// (infinity without a prior or where it never does).
     #[inline]
     pub(super) fn fused_min_ratio2(&self, cx: usize, cy: usize) -> f32 {
-        match &self.prior {
-            Some(p) => self.fusion.min_ratio2(p.at_cell(cx, cy)),
-            None => f32::INFINITY,
-        }
+        let Some(p) = &self.prior else {
+            return f32::INFINITY;
+        };
+        let cw = (self.width as usize).div_ceil(COARSE as usize);
+        let in_zone = !self.zone_everywhere
+            && self.coarse_model.zone.get(cy * cw + cx).is_some_and(|&z| z != 0);
+        self.fusion.min_ratio2_at(p.at_cell(cx, cy), in_zone)
     }
 }
 
@@ -337,6 +369,10 @@ mod tests {
         for k in 1..256 {
             assert!(r.min_ratio2(k as u8) <= r.min_ratio2(k as u8 - 1), "{k}");
         }
+        // On the floor around the mark a shadow under a blurred foot stays floor.
+        assert!(r.is_person(q(0.6), 9.0));
+        assert!(r.min_ratio2_at(q(0.6), true).is_infinite());
+        assert!(r.min_ratio2_at(q(0.97), true) <= 1.0);
     }
 
     #[test]

@@ -570,13 +570,16 @@ pub struct EvalCmd {
 
 /// The scratch folder of a recording's station masks during `fitstation eval`.
 fn eval_masks_dir(rec: &Path) -> PathBuf {
-    let name = rec
-        .file_name()
-        .map(|n| n.to_string_lossy().into_owned())
-        .unwrap_or_default();
+    // The set's folder and the recording's name: sets share subject names.
+    let name = |p: Option<&Path>| {
+        p.and_then(|p| p.file_name())
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
     std::env::temp_dir()
         .join(format!("fitstation-eval-masks-{}", std::process::id()))
-        .join(name)
+        .join(name(rec.parent()))
+        .join(name(Some(rec)))
 }
 
 /// Runs `fitstation eval`.

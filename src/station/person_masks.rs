@@ -36,6 +36,9 @@ const CROP_SCALE: f32 = 1.1;
 const MIN_PIECE_CELLS: u64 = 150;
 /// The pieces' box must be at least this fraction of the standing volume's height.
 const MIN_PIECES_HEIGHT: f64 = 0.4;
+/// Margin below the mark's image in a crop extended to the feet (fraction of the
+/// standing volume's image height).
+const FEET_MARGIN: f64 = 0.03;
 /// Someone is in view when a view's largest component has this many pixels.
 const SOMEONE_PX: u64 = 1500;
 /// The standing volume over the mark, metres: half width (x), height, half depth (z).
@@ -133,7 +136,7 @@ impl PersonMasks {
                 let _ = silhouettes.set_person_prior(view, None); // clearing cannot fail
                 continue;
             };
-            let crop = person_crop(silhouettes, view, volume);
+            let crop = person_crop(silhouettes, calib.camera(view), view, volume);
             let roi = Roi::square_around(
                 crop.min_x as f32,
                 crop.min_y as f32,
@@ -211,14 +214,32 @@ fn standing_volume_box(camera: &Camera, w: u32, h: u32) -> Option<PixelBox> {
     (b.min_x < b.max_x && b.min_y < b.max_y).then_some(b)
 }
 
-/// The box fed to the network: the person's pieces inside the standing volume, or the
-/// volume when they are too short to be a person.
-fn person_crop(silhouettes: &SilhouetteExecutor, view: View, volume: PixelBox) -> PixelBox {
+/// The box fed to the network: the person's pieces inside the standing volume, down to
+/// the mark at least (lower legs and feet lost against the floor would otherwise fall
+/// out of the crop), or the volume when the pieces are too short to be a person.
+fn person_crop(
+    silhouettes: &SilhouetteExecutor,
+    camera: &Camera,
+    view: View,
+    volume: PixelBox,
+) -> PixelBox {
     let min_height = MIN_PIECES_HEIGHT * (volume.max_y - volume.min_y) as f64;
+    // The soles on the mark: pieces that stop short of them are extended to a little
+    // below (pieces reaching them are kept as they are).
+    let margin = FEET_MARGIN * (volume.max_y - volume.min_y) as f64;
+    let mark_y = camera.project(DVec3::ZERO).map(|p| p.y);
+    let reach = |b: &PixelBox| match mark_y {
+        Some(y) if (b.max_y as f64) < y - 2.0 * margin => (y + margin).max(0.0) as u32,
+        _ => b.max_y,
+    };
     silhouettes
         .model(view)
         .foreground_box(MIN_PIECE_CELLS, volume)
         .filter(|b| (b.max_y - b.min_y) as f64 >= min_height)
+        .map(|b| PixelBox {
+            max_y: reach(&b).clamp(b.max_y, volume.max_y.max(b.max_y)),
+            ..b
+        })
         .unwrap_or(volume)
 }
 
