@@ -12,10 +12,10 @@ use fitstation::synth::scene::Clothing;
 use fitstation::synth::{load_truth, render_recording, set_member, truth_dir};
 use std::path::{Path, PathBuf};
 
-/// A dev-range subject whose camouflaged clothing the backdrop model alone loses
-/// (`synth-set --first-seed 20200 --count 12 --camouflage`, subject 5).
+/// A dev-range subject whose camouflaged clothing the backdrop model alone loses: every
+/// frame refused (`synth-set --first-seed 20200 --count 12 --camouflage`, subject 4).
 const FIRST_SEED: u64 = 20200;
-const MEMBER: usize = 5;
+const MEMBER: usize = 4;
 const SET_COUNT: usize = 12;
 /// Frames with the subject (after the ten empty ones the backdrop is learned on).
 const SUBJECT_FRAMES: usize = 4;
@@ -126,12 +126,12 @@ fn the_person_mask_restores_clothing_in_the_backdrops_colour() {
     // Fused: every subject frame fitted, silhouettes close to the truth, the chest near.
     assert_eq!(with.fitted, SUBJECT_FRAMES as u64, "{}", with.report["messages"]);
     assert!(
-        with.iou_front >= 0.9 && with.iou_side >= 0.88,
+        with.iou_front >= 0.95 && with.iou_side >= 0.93,
         "IoU front {:.3}, side {:.3}",
         with.iou_front,
         with.iou_side
     );
     let chest = with.chest_error_mm.expect("a fitted chest");
-    assert!(chest.abs() <= 40.0, "chest girth error {chest:+.1} mm");
+    assert!(chest.abs() <= 30.0, "chest girth error {chest:+.1} mm");
     let _ = std::fs::remove_dir_all(&dir);
 }
