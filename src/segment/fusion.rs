@@ -60,8 +60,8 @@ impl Default for FusionOptions {
     fn default() -> Self {
         FusionOptions {
             min_prob: 0.3,
-            ratio_mid: 0.7,
-            slope: 10.0,
+            ratio_mid: 0.8,
+            slope: 12.0,
             cap: 1.5,
             zone_min_prob: 0.9,
         }
@@ -87,12 +87,12 @@ pub struct FusionRule {
 impl FusionRule {
     /// The tables of `opts`.
     pub fn new(opts: FusionOptions) -> Self {
-        let min_ratio2 = std::array::from_fn(|k| min_ratio2_of(k as f32 / 255.0, &opts));
+        let min_ratio2 = std::array::from_fn(|k| min_ratio2_of(level_prob(k), &opts));
         let zone = FusionOptions {
             min_prob: opts.min_prob.max(opts.zone_min_prob),
             ..opts
         };
-        let zone_min_ratio2 = std::array::from_fn(|k| min_ratio2_of(k as f32 / 255.0, &zone));
+        let zone_min_ratio2 = std::array::from_fn(|k| min_ratio2_of(level_prob(k), &zone));
         FusionRule {
             opts,
             min_ratio2,
@@ -129,6 +129,12 @@ impl Default for FusionRule {
     fn default() -> Self {
         FusionRule::new(FusionOptions::default())
     }
+}
+
+/// The probability an 8-bit level stands for: the middle of its bin, so the top level is
+/// not a certainty (a certain network would overrule any backdrop evidence).
+fn level_prob(k: usize) -> f32 {
+    (k as f32 + 0.5) / 256.0
 }
 
 /// The least `r^2` with `logit(p) + min(slope (r - r_mid), cap) >= 0`, or infinity.
@@ -391,8 +397,8 @@ mod tests {
         assert_eq!(p.at_cell(6, 11), 0);
     }
 
-    /// A 64x48 pale backdrop with a "shirt" 12 levels brighter in a box (inside the noise
-    /// radius) and a well-seen dark "head" above it.
+    /// A 64x48 pale backdrop with a "shirt" 21 levels brighter in a box (inside the noise
+    /// radius of a one-frame model, 28 levels) and a well-seen dark "head" above it.
     fn camouflage_frame() -> (RgbImage, RgbImage, PixelBox) {
         let empty = RgbImage::from_pixel(64, 48, Rgb([200, 200, 196]));
         let mut frame = empty.clone();
@@ -405,7 +411,7 @@ mod tests {
         for y in 0..48 {
             for x in 0..64 {
                 if x >= shirt.min_x && x < shirt.max_x && y >= shirt.min_y && y < shirt.max_y {
-                    frame.put_pixel(x, y, Rgb([210, 208, 203]));
+                    frame.put_pixel(x, y, Rgb([214, 212, 206]));
                 } else if (26..38).contains(&x) && (4..16).contains(&y) {
                     frame.put_pixel(x, y, Rgb([60, 40, 30]));
                 }

@@ -492,6 +492,13 @@ impl FrameProcessor for StationProcessor {
         let total: f64 = timer.stages().iter().map(|(_, ms)| ms).sum();
         s.timings_ms = timer.into_stages();
         s.timings_ms.push(("total".into(), total));
+        if self.opts.person_model && s.phase != Phase::LearningBackdrop {
+            // Part of `silhouettes` (not added to the total): the pass of both views'
+            // segmentation that fuses the person mask in.
+            let st = &self.silhouette_result;
+            let fuse = st.front.stats.phase_ms.fuse + st.side.stats.phase_ms.fuse;
+            s.timings_ms.push(("silhouettes_fuse_part".into(), fuse as f64));
+        }
         if let Some(dir) = self.opts.masks_out.clone() {
             if s.phase != Phase::LearningBackdrop {
                 if let Err(e) = self.write_masks(&dir, pair.index) {
