@@ -31,7 +31,26 @@
 //! parent module.
 
 use super::{BackgroundModel, PixelBox, COARSE};
-use crate::imgproc::MASK_ON;
+use crate::imgproc::{self, MASK_ON};
+
+/// Erosions (then as many dilations) of the fused cells: an opening by a square of
+/// `2 OPEN_STEPS + 1` cells. Clothing lost in the backdrop is a broad region; what
+/// survives only as a sliver is the optics' halo of a bright hand on a dark backdrop, or
+/// a gap between a hand and the trunk the network blurred shut.
+const OPEN_STEPS: usize = 1;
+
+/// Scratch of the fusion pass (kept between frames: the per-frame path does not
+/// allocate).
+#[derive(Debug, Clone, Default)]
+pub(super) struct FuseScratch {
+    /// The prior box's cells, 255 where fused.
+    fused: Vec<u8>,
+    /// Their labels before the fusion.
+    before: Vec<u8>,
+    a: Vec<u8>,
+    b: Vec<u8>,
+    tmp: Vec<u8>,
+}
 
 /// Label of a coarse cell made person by the fusion (odd: the majority filter counts
 /// `v & 1`; distinct from the other labels of the classification).
@@ -149,6 +168,44 @@ fn min_ratio2_of(p: f32, o: &FusionOptions) -> f32 {
     } else {
         r * r
     }
+}
+
+/// Opens the fused cells of the prior's box (`bw x bh`): `scratch.a` holds the opened map.
+fn open_fused(scratch: &mut FuseScratch, bw: usize, bh: usize) {
+    let FuseScratch { fused, a, b, tmp, .. } = scratch;
+    a.clear();
+    a.extend_from_slice(fused);
+    for _ in 0..OPEN_STEPS {
+        imgproc::erode3x3(a, bw, bh, b, tmp);
+        std::mem::swap(a, b);
+    }
+    for _ in 0..OPEN_STEPS {
+        imgproc::dilate3x3(a, bw, bh, b, tmp);
+        std::mem::swap(a, b);
+    }
+}
+
+/// Gives the fused cells the opening removed their former labels back; returns the
+/// fused cells kept.
+fn restore_slivers(
+    coarse: &mut [u8],
+    cw: usize,
+    (x0, y0, x1, _): (usize, usize, usize, usize),
+    scratch: &FuseScratch,
+) -> u64 {
+    let bw = x1 - x0;
+    let mut kept = 0;
+    for (j, (&f, &o)) in scratch.fused.iter().zip(&scratch.a).enumerate() {
+        if f == 0 {
+            continue;
+        }
+        if o != 0 {
+            kept += 1;
+        } else {
+            coarse[(y0 + j / bw) * cw + x0 + j % bw] = scratch.before[j];
+        }
+    }
+    kept
 }
 
 /// A learned person probability on the segmentation's coarse grid, inside a box of cells.
@@ -299,17 +356,40 @@ impl BackgroundModel {
     }
 
     /// Makes the coarse cells of the prior's box that the backdrop model does not call
-    /// foreground person where the fusion rule says so (label [`FUSED`]); returns their
-    /// number. `raw` is the frame, `coarse` the classification (`cw` cells a row).
-    pub(super) fn fuse_coarse(&self, raw: &[u8], coarse: &mut [u8], cw: usize) -> u64 {
+    /// foreground person where the fusion rule says so (label [`FUSED`]), but for
+    /// slivers ([`OPEN_STEPS`]); returns their number. `raw` is the frame, `coarse` the
+    /// classification (`cw` cells a row).
+    pub(super) fn fuse_coarse(
+        &self,
+        raw: &[u8],
+        coarse: &mut [u8],
+        cw: usize,
+        scratch: &mut FuseScratch,
+    ) -> u64 {
         let Some(prior) = &self.prior else {
             return 0;
+        };
+        let (x0, y0, x1, y1) = prior.cell_box();
+        let (bw, bh) = (x1 - x0, y1 - y0);
+        scratch.fused.clear();
+        scratch.fused.resize(bw * bh, 0);
+        scratch.before.clear();
+        scratch.before.resize(bw * bh, 0);
+        self.mark_fused(raw, coarse, cw, scratch);
+        open_fused(scratch, bw, bh);
+        restore_slivers(coarse, cw, prior.cell_box(), scratch)
+    }
+
+    /// The fusion rule over the prior's box: fused cells get [`FUSED`] in `coarse` and
+    /// 255 in `scratch.fused`, their former labels in `scratch.before`.
+    fn mark_fused(&self, raw: &[u8], coarse: &mut [u8], cw: usize, scratch: &mut FuseScratch) {
+        let Some(prior) = &self.prior else {
+            return;
         };
         let (w, c) = (self.width as usize, COARSE as usize);
         let (x0, y0, x1, y1) = prior.cell_box();
         let g = self.gain;
         let m = &self.coarse_model;
-        let mut fused = 0;
         // Without a calibration the whole frame is zone: no cell is told apart.
         let zoned = !self.zone_everywhere;
         for cy in y0..y1 {
@@ -328,12 +408,13 @@ impl BackgroundModel {
                 ];
                 let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
                 if dd >= need * (m.tau2[k] as f32).max(1.0) {
+                    let j = (cy - y0) * (x1 - x0) + cx - x0;
+                    scratch.before[j] = coarse[k];
+                    scratch.fused[j] = MASK_ON;
                     coarse[k] = FUSED;
-                    fused += 1;
                 }
             }
         }
-        fused
     }
 
     /// The least `r^2` making a pixel of coarse cell `(cx, cy)` person by the fusion

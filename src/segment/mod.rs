@@ -448,6 +448,7 @@ pub struct BackgroundModel {
     /// The learned person prior ([`fusion`]), when the station gave one.
     prior: Option<fusion::PersonPrior>,
     fusion: fusion::FusionRule,
+    fuse_scratch: fusion::FuseScratch,
 }
 
 /// Model of one pixel in eight bytes (the band re-test is bound by memory latency):
@@ -674,6 +675,7 @@ impl BackgroundModel {
             band_out: Vec::new(),
             prior: None,
             fusion: fusion::FusionRule::default(),
+            fuse_scratch: fusion::FuseScratch::default(),
         }
     }
 
@@ -1059,9 +1061,13 @@ impl BackgroundModel {
         }
         stats.phase_ms.classify = clock.lap();
         // The learned person prior decides the cells the backdrop is unsure of.
-        let mut coarse = std::mem::take(&mut self.coarse);
-        stats.fused_px = self.fuse_coarse(raw, &mut coarse, cw) * (COARSE * COARSE) as u64;
-        self.coarse = coarse;
+        let (mut coarse, mut scratch) = (
+            std::mem::take(&mut self.coarse),
+            std::mem::take(&mut self.fuse_scratch),
+        );
+        stats.fused_px =
+            self.fuse_coarse(raw, &mut coarse, cw, &mut scratch) * (COARSE * COARSE) as u64;
+        (self.coarse, self.fuse_scratch) = (coarse, scratch);
         stats.phase_ms.fuse = clock.lap();
         // WEAK cells are even: the majority filter below (which counts `v & 1`) takes
         // them as background without a clean-up pass.

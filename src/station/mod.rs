@@ -368,6 +368,7 @@ impl StationProcessor {
                 s.clear();
             }
             self.landmark_windows.clear();
+            self.person_masks.expire();
             notes.push("The pose changed: the body is chosen again on the held pose.".to_string());
         }
         let first = !self.fitter.has_subject();

@@ -26,7 +26,7 @@ use crate::segment::PixelBox;
 use glam::DVec3;
 
 /// Frames between two runs of the network while the silhouettes are accepted.
-pub const EVERY_FRAMES: usize = 8;
+pub const EVERY_FRAMES: usize = 6;
 /// Frames between two runs while the silhouettes are refused.
 pub const RETRY_FRAMES: usize = 3;
 /// The crop: the pieces' box, squared and widened by this (the selfie network does best
@@ -104,6 +104,14 @@ impl PersonMasks {
         match self.since {
             None => someone_in_view(result),
             Some(n) => n + 1 >= EVERY_FRAMES || (n + 1 >= RETRY_FRAMES && refused(result)),
+        }
+    }
+
+    /// Makes the network run on the next frame (the subject's pose changed: the kept
+    /// prior shows the limbs where they were).
+    pub fn expire(&mut self) {
+        if self.since.is_some() {
+            self.since = Some(EVERY_FRAMES);
         }
     }
 
