@@ -26,7 +26,7 @@ use crate::segment::PixelBox;
 use glam::DVec3;
 
 /// Frames between two runs of the network while the silhouettes are accepted.
-pub const EVERY_FRAMES: usize = 6;
+pub const EVERY_FRAMES: usize = 8;
 /// Frames between two runs while the silhouettes are refused.
 pub const RETRY_FRAMES: usize = 3;
 /// The crop: the pieces' box, squared and widened by this (the selfie network does best
