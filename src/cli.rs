@@ -764,6 +764,20 @@ pub struct EvalCmd {
     pub no_person_model: bool,
 }
 
+/// The scratch folder of a recording's station masks during `fitstation eval`.
+fn eval_masks_dir(rec: &Path) -> PathBuf {
+    // The set's folder and the recording's name: sets share subject names.
+    let name = |p: Option<&Path>| {
+        p.and_then(|p| p.file_name())
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_default()
+    };
+    std::env::temp_dir()
+        .join(format!("fitstation-eval-masks-{}", std::process::id()))
+        .join(name(rec.parent()))
+        .join(name(Some(rec)))
+}
+
 /// Runs `fitstation eval`.
 pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
     if cmd.eval.result.is_some() {
@@ -802,6 +816,13 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
         if o.stature_m.is_none() {
             o.stature_m = src.recording().metadata().stature_m;
         }
+        // The station's masks, for the mask IoU (a scratch folder per recording).
+        let masks = eval_masks_dir(rec);
+        if masks.exists() {
+            std::fs::remove_dir_all(&masks)
+                .with_context(|| format!("cannot clear {}", masks.display()))?;
+        }
+        o.masks_out = Some(masks.clone());
         let mut proc_ = StationProcessor::new(calib, library.clone(), o)?;
         let summary = run_offline(&mut src, &mut proc_, None, false);
         let avatar = summary
@@ -810,7 +831,7 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
         Ok(crate::eval::FitResult {
             avatar,
             report_json: summary.report,
-            masks_dir: None,
+            masks_dir: masks.is_dir().then_some(masks),
         })
     };
     crate::eval::run_with(&cmd.eval, &mut source)

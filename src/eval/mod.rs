@@ -138,6 +138,32 @@ pub struct EvalRow {
     /// Largest frame-to-frame change of each shown measurement after settling, mm
     /// (report.json `settled_step_mm`, when present).
     pub settled_step_mm: BTreeMap<String, f64>,
+    /// The report's frame counts (`frames`), when present: frame pairs with a subject
+    /// and those fitted; the others were refused (a verdict, no landmarks, a failed fit).
+    pub frames: Option<FrameTally>,
+}
+
+/// Frame pairs with a subject and fitted, from a report's `frames`.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq, Eq)]
+pub struct FrameTally {
+    pub with_subject: u64,
+    pub fitted: u64,
+}
+
+impl FrameTally {
+    /// From report.json's `frames` object (None when it lacks the counts).
+    fn from_report(report: &serde_json::Value) -> Option<FrameTally> {
+        let f = report.get("frames")?;
+        Some(FrameTally {
+            with_subject: f.get("with_subject")?.as_u64()?,
+            fitted: f.get("fitted")?.as_u64()?,
+        })
+    }
+
+    /// Frame pairs with a subject that were not fitted.
+    pub fn refused(&self) -> u64 {
+        self.with_subject.saturating_sub(self.fitted)
+    }
 }
 
 /// Scores `result` against the truth in `truth_dir`.
@@ -196,6 +222,7 @@ pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalErr
         })
         .unwrap_or_default();
     Ok(EvalRow {
+        frames: FrameTally::from_report(&result.report_json),
         settled_step_mm,
         subject,
         measurements,
@@ -545,6 +572,36 @@ impl EvalTable {
             "timings_ms": self.timing_summary(), "failures": self.failures })
     }
 
+    /// Frame pairs refused of those with a subject, and the mean mask IoU per view
+    /// (over the subjects that have it).
+    pub fn refusals_line(&self) -> (Option<(u64, u64)>, Option<f64>, Option<f64>) {
+        let tallies: Vec<FrameTally> = self.rows.iter().filter_map(|r| r.frames).collect();
+        let refused = (!tallies.is_empty()).then(|| {
+            (
+                tallies.iter().map(|t| t.refused()).sum(),
+                tallies.iter().map(|t| t.with_subject).sum(),
+            )
+        });
+        let iou = |v: &str| {
+            let x: Vec<f64> = self.rows.iter().filter_map(|r| r.mask_iou.get(v).copied()).collect();
+            (!x.is_empty()).then(|| x.iter().sum::<f64>() / x.len() as f64)
+        };
+        (refused, iou("front"), iou("side"))
+    }
+
+    /// The refusals and mean mask IoU as text lines (empty when the rows lack both).
+    fn refusals_and_iou(&self) -> String {
+        let (refused, f, s) = self.refusals_line();
+        let mut out = String::new();
+        if let Some((r, n)) = refused {
+            out.push_str(&format!("\nframes refused (subject in view, not fitted): {r} of {n}\n"));
+        }
+        if let (Some(f), Some(s)) = (f, s) {
+            out.push_str(&format!("mean mask IoU: front {f:.3}, side {s:.3}\n"));
+        }
+        out
+    }
+
     /// The plain-text table.
     pub fn to_text(&self) -> String {
         let mut s = String::new();
@@ -647,6 +704,7 @@ impl EvalTable {
                 ));
             }
         }
+        s.push_str(&self.refusals_and_iou());
         let t = self.timing_summary();
         if !t.is_empty() {
             s.push_str("\nstage                  median ms   worst p95 ms\n");
@@ -808,6 +866,24 @@ pub fn sets_side_by_side(sets: &[(String, EvalTable)]) -> String {
         s.push_str(&format!(" {cell:>COL$}"));
     }
     s.push('\n');
+    s.push_str(&format!("{:<20}", "frames refused"));
+    for (_, t) in sets {
+        let cell = match t.refusals_line().0 {
+            Some((r, n)) => format!("{r} of {n}"),
+            None => "-".into(),
+        };
+        s.push_str(&format!(" {cell:>COL$}"));
+    }
+    s.push('\n');
+    s.push_str(&format!("{:<20}", "mask IoU front/side"));
+    for (_, t) in sets {
+        let cell = match t.refusals_line() {
+            (_, Some(f), Some(si)) => format!("{f:.3} / {si:.3}"),
+            _ => "-".into(),
+        };
+        s.push_str(&format!(" {cell:>COL$}"));
+    }
+    s.push('\n');
     s
 }
 
@@ -941,6 +1017,7 @@ mod tests {
             timings_ms: BTreeMap::new(),
             profile: Vec::new(),
             settled_step_mm: BTreeMap::new(),
+            frames: None,
         }
     }
 

@@ -561,6 +561,29 @@ impl SilhouetteExecutor {
         }
     }
 
+    /// Gives a view's background model the learned person prior for the next frames, or
+    /// none ([`segment::fusion`]).
+    ///
+    /// # Errors
+    /// A prior made for another frame size (the view then has none).
+    pub fn set_person_prior(
+        &mut self,
+        view: View,
+        prior: Option<segment::fusion::PersonPrior>,
+    ) -> Result<(), LandmarkError> {
+        let state = match view {
+            View::Front => &mut self.front,
+            View::Side => &mut self.side,
+        };
+        state
+            .model
+            .set_person_prior(prior)
+            .map_err(|e| LandmarkError::Segment {
+                view: view.name(),
+                source: e,
+            })
+    }
+
     /// The background model of a view.
     pub fn model(&self, view: View) -> &BackgroundModel {
         match view {

@@ -57,6 +57,8 @@
 //! colours are 8-bit sRGB values used as they are (no linearisation), except for the
 //! sub-pixel edge score ([`EdgeScorer`]), which compares colours in linear light.
 
+pub mod fusion;
+
 use crate::camera::Camera;
 use crate::imgproc::{self, RunComponents, MASK_ON};
 use glam::DVec2;
@@ -327,6 +329,9 @@ pub struct SegmentStats {
     pub gain: f32,
     /// Full-resolution pixels re-tested along the border.
     pub band_px: u32,
+    /// Full-resolution pixels (coarse cells times four) made person by the learned
+    /// person prior ([`fusion`]); 0 without a prior.
+    pub fused_px: u64,
     /// Wall time of the phases.
     pub phase_ms: SegmentPhases,
 }
@@ -365,6 +370,8 @@ fn luma8(r: u32, g: u32, b: u32) -> u32 {
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize)]
 pub struct SegmentPhases {
     pub classify: f32,
+    /// The fusion with the learned person prior ([`fusion`]).
+    pub fuse: f32,
     pub components: f32,
     pub upsample: f32,
     pub band: f32,
@@ -438,6 +445,10 @@ pub struct BackgroundModel {
     /// Cells of the band, `[cx, cy]`.
     band_cells: Vec<[u32; 2]>,
     band_out: Vec<u8>,
+    /// The learned person prior ([`fusion`]), when the station gave one.
+    prior: Option<fusion::PersonPrior>,
+    fusion: fusion::FusionRule,
+    fuse_scratch: fusion::FuseScratch,
 }
 
 /// Model of one pixel in eight bytes (the band re-test is bound by memory latency):
@@ -662,6 +673,9 @@ impl BackgroundModel {
             band_px: Vec::new(),
             band_cells: Vec::new(),
             band_out: Vec::new(),
+            prior: None,
+            fusion: fusion::FusionRule::default(),
+            fuse_scratch: fusion::FuseScratch::default(),
         }
     }
 
@@ -1045,6 +1059,16 @@ impl BackgroundModel {
                 *o = (fg as u8).wrapping_neg() | (cand as u8) << 1;
             }
         }
+        stats.phase_ms.classify = clock.lap();
+        // The learned person prior decides the cells the backdrop is unsure of.
+        let (mut coarse, mut scratch) = (
+            std::mem::take(&mut self.coarse),
+            std::mem::take(&mut self.fuse_scratch),
+        );
+        stats.fused_px =
+            self.fuse_coarse(raw, &mut coarse, cw, &mut scratch) * (COARSE * COARSE) as u64;
+        (self.coarse, self.fuse_scratch) = (coarse, scratch);
+        stats.phase_ms.fuse = clock.lap();
         // WEAK cells are even: the majority filter below (which counts `v & 1`) takes
         // them as background without a clean-up pass.
         if o.bridge_columns {
@@ -1062,7 +1086,7 @@ impl BackgroundModel {
         stats.exposure = ExposureStats::from_counts(luma_sum, hi, lo, cw * ch);
         stats.backdrop = self.backdrop_exposure;
 
-        stats.phase_ms.classify = clock.lap();
+        stats.phase_ms.classify += clock.lap();
         // 2. Clean-up, components, largest with holes filled.
         imgproc::majority3x3(&self.coarse, cw, ch, &mut self.coarse_clean, &mut self.tmp);
         self.runs
@@ -1206,14 +1230,18 @@ impl BackgroundModel {
             let label = self.coarse[cy * cw + cx];
             let bridged =
                 label == BRIDGED || (label == MASK_ON && self.coarse_model.zone[cy * cw + cx] != 0);
+            // Pixels the fusion makes person (see `fusion`).
+            let fused_ratio2 = self.fused_min_ratio2(cx, cy);
             for dy in 0..COARSE as usize {
                 for dx in 0..COARSE as usize {
                     let (x, y) = (cx * COARSE as usize + dx, cy * COARSE as usize + dy);
                     if x < w && y < h {
                         let i = y * w + x;
                         let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
-                        self.band_state[i] =
-                            if self.is_foreground(i, p) || (bridged && self.is_changed(i, p)) {
+                        self.band_state[i] = if self.is_foreground(i, p)
+                            || (bridged && self.is_changed(i, p))
+                            || (fused_ratio2.is_finite() && self.ratio2(i, p) >= fused_ratio2)
+                        {
                                 BAND_FG
                             } else {
                                 BAND_BG

@@ -10,6 +10,7 @@
 
 pub mod faults;
 pub mod output;
+pub mod person_masks;
 pub mod pose_change;
 pub mod side_limbs;
 pub mod uncertainty;
@@ -54,8 +55,13 @@ pub struct StationOptions {
     /// Stability (mm, spread of the recent window) under which a girth counts as settled.
     pub settled_mm: f64,
     /// Run the learned pose model on the side view to tell the arms from the trunk
-    /// ([`side_limbs`]); off, the fit tells them apart by shape alone.
+    /// ([`side_limbs`]), and the learned person mask where the backdrop model is unsure
+    /// ([`person_masks`]); off, the fit tells the arms apart by shape alone and the
+    /// backdrop model segments alone.
     pub person_model: bool,
+    /// Write each processed frame pair's masks as `DIR/{front,side}/NNNNNN.png` (the
+    /// evaluation's mask IoU); not timed.
+    pub masks_out: Option<std::path::PathBuf>,
 }
 
 impl Default for StationOptions {
@@ -67,6 +73,7 @@ impl Default for StationOptions {
             silhouette: SilhouetteOptions::default(),
             settled_mm: 2.0,
             person_model: true,
+            masks_out: None,
         }
     }
 }
@@ -104,6 +111,10 @@ pub struct StationProcessor {
     side_limbs: side_limbs::SideLimbs,
     /// Source faults (stall, order, corrupt frames, exposure) found before the stages.
     faults: faults::FaultMonitor,
+    /// The learned person mask the segmentation falls back on where unsure.
+    person_masks: person_masks::PersonMasks,
+    /// Messages of the person mask said once per run.
+    said_person_masks: bool,
 }
 
 impl StationProcessor {
@@ -137,6 +148,12 @@ impl StationProcessor {
                 side_limbs::SideLimbs::off()
             },
             faults: faults::FaultMonitor::default(),
+            person_masks: if opts.person_model {
+                person_masks::PersonMasks::load()
+            } else {
+                person_masks::PersonMasks::off()
+            },
+            said_person_masks: false,
             opts,
         })
     }
@@ -227,9 +244,81 @@ impl StationProcessor {
             return s;
         }
         timer.lap("silhouettes");
-        let s = self.fit_and_measure(pair, timer, &result);
+        let mut notes = Vec::new();
+        if let Err(e) = self.fuse_person_mask(pair, timer, &mut result) {
+            notes.push(e);
+        }
+        if !self.said_person_masks {
+            self.said_person_masks = true;
+            notes.extend(self.person_masks.unavailable.take());
+        }
+        let mut s = self.fit_and_measure(pair, timer, &result);
+        s.messages.extend(notes);
         self.silhouette_result = result;
         s
+    }
+
+    /// Runs the learned person mask when due and segments the frame again with it (the
+    /// network and the second segmentation timed as `person_mask` and
+    /// `silhouettes_fused`); otherwise counts the frame.
+    ///
+    /// # Errors
+    /// A message when the network or the second segmentation fails (the frame keeps its
+    /// first silhouettes).
+    fn fuse_person_mask(
+        &mut self,
+        pair: &FramePair,
+        timer: &mut FrameTimer,
+        result: &mut SilhouetteResult,
+    ) -> Result<(), String> {
+        if !self.person_masks.due(result) {
+            self.person_masks.tick();
+            return Ok(());
+        }
+        let ran = self.person_masks.run(
+            &pair.front,
+            &pair.side,
+            &self.calib,
+            &mut self.silhouettes,
+        );
+        timer.lap("person_mask");
+        let mut fused = SilhouetteResult::empty();
+        std::mem::swap(&mut fused, result);
+        let again = self
+            .silhouettes
+            .process_into(&pair.front, &pair.side, &mut fused);
+        timer.lap("silhouettes_fused");
+        match again {
+            Ok(()) => *result = fused,
+            Err(e) => {
+                // `fused` may be half written: segment the frame as it was.
+                let _ = self.silhouettes.set_person_prior(crate::camera::View::Front, None);
+                let _ = self.silhouettes.set_person_prior(crate::camera::View::Side, None);
+                self.silhouettes
+                    .process_into(&pair.front, &pair.side, &mut fused)
+                    .map_err(|e| format!("frame segmented again without the person mask: {e}"))?;
+                *result = fused;
+                return Err(format!("person mask not used on this frame: {e}"));
+            }
+        }
+        ran
+    }
+
+    /// Writes the frame pair's final masks under `dir` (`front/`, `side/`, `NNNNNN.png`).
+    fn write_masks(&self, dir: &std::path::Path, index: u64) -> Result<(), String> {
+        let masks = &self.silhouette_result.masks;
+        for (view, m) in [("front", &masks.front), ("side", &masks.side)] {
+            if m.data.is_empty() {
+                continue;
+            }
+            let d = dir.join(view);
+            std::fs::create_dir_all(&d).map_err(|e| format!("{}: {e}", d.display()))?;
+            let img = image::GrayImage::from_raw(m.width, m.height, m.data.clone())
+                .ok_or_else(|| format!("{view} mask has the wrong size"))?;
+            let p = d.join(format!("{index:06}.png"));
+            img.save(&p).map_err(|e| format!("{}: {e}", p.display()))?;
+        }
+        Ok(())
     }
 
     /// The part of a frame after the silhouettes: verdicts, fit, measurements.
@@ -282,6 +371,7 @@ impl StationProcessor {
                 s.clear();
             }
             self.landmark_windows.clear();
+            self.person_masks.expire();
             notes.push("The pose changed: the body is chosen again on the held pose.".to_string());
         }
         let first = !self.fitter.has_subject();
@@ -408,6 +498,20 @@ impl FrameProcessor for StationProcessor {
         let total: f64 = timer.stages().iter().map(|(_, ms)| ms).sum();
         s.timings_ms = timer.into_stages();
         s.timings_ms.push(("total".into(), total));
+        if self.opts.person_model && s.phase != Phase::LearningBackdrop {
+            // Part of `silhouettes` (not added to the total): the pass of both views'
+            // segmentation that fuses the person mask in.
+            let st = &self.silhouette_result;
+            let fuse = st.front.stats.phase_ms.fuse + st.side.stats.phase_ms.fuse;
+            s.timings_ms.push(("silhouettes_fuse_part".into(), fuse as f64));
+        }
+        if let Some(dir) = self.opts.masks_out.clone() {
+            if s.phase != Phase::LearningBackdrop {
+                if let Err(e) = self.write_masks(&dir, pair.index) {
+                    s.messages.push(format!("masks not written: {e}"));
+                }
+            }
+        }
         // The screen shows the frames the overlays belong to (kept in memory only).
         s.front_frame = Some(Arc::new(pair.front.clone()));
         s.side_frame = Some(Arc::new(pair.side.clone()));
@@ -426,6 +530,7 @@ impl FrameProcessor for StationProcessor {
         self.landmark_windows.clear();
         self.pose.clear();
         self.side_limbs.reset();
+        self.person_masks.reset(&mut self.silhouettes);
     }
 }
 

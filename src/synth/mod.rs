@@ -156,6 +156,9 @@ pub struct SynthConfig {
     pub format: FrameFormat,
     /// Write the truth folder (masks, mesh, truth.json).
     pub truth: bool,
+    /// Clothing as drawn from the seed, or in the backdrop's own colour
+    /// ([`scene::Clothing::Camouflage`]).
+    pub clothing: scene::Clothing,
 }
 
 impl SynthConfig {
@@ -170,6 +173,7 @@ impl SynthConfig {
             fps: crate::recording::DEFAULT_FPS,
             format: FrameFormat::Mp4,
             truth: true,
+            clothing: scene::Clothing::Drawn,
         }
     }
 }
@@ -466,7 +470,13 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
         .ok_or_else(|| SynthError::Invalid("the body mesh is empty".into()))?;
     let calib = sample_station(cfg.seed, &cfg.cameras, stature);
     let mut rng = SplitMix64::stream(cfg.seed, 0x5C);
-    let scene = Scene::random(&mut rng, [&calib.front, &calib.side]);
+    let mut scene = Scene::random(&mut rng, [&calib.front, &calib.side]);
+    if cfg.clothing == scene::Clothing::Camouflage {
+        // A stream of its own: the other draws of the seed stay as in a plain set.
+        scene
+            .look
+            .camouflage(&mut SplitMix64::stream(cfg.seed, CAMOUFLAGE_STREAM));
+    }
     let placement = Placement::sample(&mut rng);
     let sway = Sway::sample(&mut rng);
     // The body's skeleton and landmarks (method.md section 1) dress it and are truth.
@@ -541,8 +551,13 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
         fps: cfg.fps,
         stature_m: None,
         notes: Some(format!(
-            "synthetic recording, seed {}; ground truth in the sibling .truth folder",
-            cfg.seed
+            "synthetic recording, seed {}{}; ground truth in the sibling .truth folder",
+            cfg.seed,
+            if cfg.clothing == scene::Clothing::Camouflage {
+                ", clothing in the backdrop's colour (camouflage)"
+            } else {
+                ""
+            }
         )),
         date: None,
     };
@@ -806,6 +821,9 @@ pub struct SynthArgs {
     pub no_truth: bool,
 }
 
+/// Random stream of the camouflage colours (`SplitMix64::stream` label).
+const CAMOUFLAGE_STREAM: u64 = 0xCA;
+
 /// Runs `fitstation synth`.
 pub fn run(args: SynthArgs) -> anyhow::Result<()> {
     if let Some(d) = args.cameras.distance_m {
@@ -839,6 +857,7 @@ pub fn run(args: SynthArgs) -> anyhow::Result<()> {
         fps: args.fps,
         format: args.format,
         truth: !args.no_truth,
+        clothing: scene::Clothing::Drawn,
     };
     let s = render_recording(&cfg, &args.out)?;
     print_summary(&s);
@@ -905,6 +924,10 @@ pub struct SynthSetArgs {
     /// folder, else beside the source tree).
     #[arg(long)]
     pub ansur_dir: Option<PathBuf>,
+    /// Shirt and leggings in the backdrop's colour, 15 to 40 levels off (the case a
+    /// backdrop model cannot see); the other draws of each seed are the plain set's.
+    #[arg(long)]
+    pub camouflage: bool,
 }
 
 /// Where the bodies of an evaluation set come from.
@@ -978,6 +1001,9 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
             cfg.subject.stance = Some(stance::Stance::sample(cfg.seed));
         }
         cfg.format = args.format;
+        if args.camouflage {
+            cfg.clothing = scene::Clothing::Camouflage;
+        }
         cfg.subject.pose = subject::LimbPose {
             arms_deg: args.arms_deg,
             legs_deg: args.legs_deg,

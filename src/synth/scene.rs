@@ -75,6 +75,27 @@ fn srgb_to_linear(c: [u8; 3]) -> [f32; 3] {
     c.map(|v| (v as f32 / 255.0).powf(2.2))
 }
 
+/// The 8-bit level of a linear albedo (inverse of `srgb_to_linear`).
+fn linear_to_srgb(c: [f32; 3]) -> [f32; 3] {
+    c.map(|v| 255.0 * v.max(0.0).powf(1.0 / 2.2))
+}
+
+/// How the subject's clothing colours are chosen.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Clothing {
+    /// From the lists of shirts and leggings, by the seed.
+    #[default]
+    Drawn,
+    /// Shirt and leggings in the backdrop's colour, [`CAMOUFLAGE_MIN_LEVELS`] to
+    /// [`CAMOUFLAGE_MAX_LEVELS`] 8-bit levels off ([`Look::camouflage`]).
+    Camouflage,
+}
+
+/// Distance of camouflage clothing from the backdrop's colour (8-bit levels, Euclidean
+/// over R, G, B).
+pub const CAMOUFLAGE_MIN_LEVELS: f64 = 15.0;
+pub const CAMOUFLAGE_MAX_LEVELS: f64 = 40.0;
+
 const BACKDROPS: [[u8; 3]; 7] = [
     [200, 200, 196],
     [120, 170, 120],
@@ -124,6 +145,34 @@ const SHOES: [[u8; 3]; 3] = [[20, 20, 20], [230, 230, 230], [60, 50, 45]];
 fn pick<const N: usize>(rng: &mut SplitMix64, list: &[[u8; 3]; N]) -> [f32; 3] {
     let i = (rng.uniform() * N as f64) as usize;
     srgb_to_linear(list[i.min(N - 1)])
+}
+
+impl Look {
+    /// Dresses the subject in the backdrop's colour: shirt and leggings each a random
+    /// direction and a distance of [`CAMOUFLAGE_MIN_LEVELS`]..[`CAMOUFLAGE_MAX_LEVELS`]
+    /// 8-bit levels from the backdrop (turned back where a channel would leave 0..255).
+    pub fn camouflage(&mut self, rng: &mut SplitMix64) {
+        let base = linear_to_srgb(self.backdrop);
+        self.shirt = camouflage_colour(base, rng);
+        self.leggings = camouflage_colour(base, rng);
+    }
+}
+
+/// A colour `CAMOUFLAGE_MIN_LEVELS..CAMOUFLAGE_MAX_LEVELS` levels from `base` (8-bit
+/// levels) in a random direction, as a linear albedo.
+fn camouflage_colour(base: [f32; 3], rng: &mut SplitMix64) -> [f32; 3] {
+    let dist = rng.range(CAMOUFLAGE_MIN_LEVELS, CAMOUFLAGE_MAX_LEVELS) as f32;
+    let mut dir = [rng.normal() as f32, rng.normal() as f32, rng.normal() as f32];
+    let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt().max(1e-6);
+    dir = dir.map(|d| d / n);
+    // A channel that would leave the range turns back (the distance is kept).
+    for (d, b) in dir.iter_mut().zip(base) {
+        if !(0.0..=255.0).contains(&(b + dist * *d)) {
+            *d = -*d;
+        }
+    }
+    let level: [u8; 3] = std::array::from_fn(|k| (base[k] + dist * dir[k]).round().clamp(0.0, 255.0) as u8);
+    srgb_to_linear(level)
 }
 
 impl Scene {

@@ -1,0 +1,605 @@
+//! Fusion of a learned person probability with the backdrop model (issue 20, item 3).
+//!
+//! The backdrop model fails where clothing is close to the backdrop's colour: a white
+//! shirt on a pale wall stays within (or just beyond) the noise radius, or differs only
+//! in brightness and is explained as a shadow, and the trunk goes missing. A learned
+//! person model (run at a low rate by the station, [`crate::person`]) knows the shape of
+//! a person but draws a soft, slightly too large outline. The fusion lets each decide
+//! where it is good:
+//!
+//! - a cell the backdrop model calls foreground stays foreground (its outline is precise);
+//! - any other cell inside the prior's box is person when the learned probability `p` and
+//!   the colour's distance from the backdrop agree enough: with `r = |I - gE| / tau` the
+//!   distance from the exposure-scaled backdrop colour in units of the noise radius,
+//!   `logit(p) + min(slope (r - r_mid), cap) >= 0` and `p >= min_prob`.
+//!
+//! A backdrop pixel's own noise keeps `r` near 0.25 (the radius is four sigmas), so the
+//! too large rim of the learned mask around a well-seen person stays backdrop (with the
+//! defaults `r_mid = 0.8`, `slope = 12`, even `p = 0.998` needs `r >= 0.28`, and `p =
+//! 0.95` needs `r >= 0.56`); clothing 15 levels or more off the backdrop has `r` near 1
+//! or more and the learned probability decides; a cell explained as a shadow (`r > 1`)
+//! is person only with `p` above `sigmoid(-cap)`, and on the floor's shadow zone only
+//! with `p >= zone_min_prob`. The rule is evaluated without logarithms: a table gives,
+//! per 8-bit probability, the least `r^2` that makes a cell person ([`FusionRule`]).
+//! Last, the fused cells are opened by a 3x3 square ([`OPEN_STEPS`]): lost clothing is a
+//! broad region, while the optics' halo of a bright hand on a dark backdrop, or a gap
+//! the network blurred shut, survives only as a sliver (this took 41 mm off a waist in
+//! `tests/station_replay.rs`, hands before the belly).
+//!
+//! The prior ([`PersonPrior`]) is kept on the segmentation's coarse grid, inside a box of
+//! cells, as 8-bit probabilities; it is made from the network's map when the network
+//! runs and used as it is by the frames in between (the station refreshes it).
+//!
+//! # Conventions
+//! Pixels (column, row), origin at the top-left pixel; coarse cell `(cx, cy)` is sampled
+//! at pixel `(COARSE cx, COARSE cy)` and covers `COARSE x COARSE` pixels, as in the
+//! parent module.
+
+use super::{BackgroundModel, PixelBox, COARSE};
+use crate::imgproc::{self, MASK_ON};
+
+/// Erosions (then as many dilations) of the fused cells: an opening by a square of
+/// `2 OPEN_STEPS + 1` cells. Clothing lost in the backdrop is a broad region; what
+/// survives only as a sliver is the optics' halo of a bright hand on a dark backdrop, or
+/// a gap between a hand and the trunk the network blurred shut.
+const OPEN_STEPS: usize = 1;
+
+/// Scratch of the fusion pass (kept between frames: the per-frame path does not
+/// allocate).
+#[derive(Debug, Clone, Default)]
+pub(super) struct FuseScratch {
+    /// The prior box's cells, 255 where fused.
+    fused: Vec<u8>,
+    /// Their labels before the fusion.
+    before: Vec<u8>,
+    a: Vec<u8>,
+    b: Vec<u8>,
+    tmp: Vec<u8>,
+}
+
+/// Label of a coarse cell made person by the fusion (odd: the majority filter counts
+/// `v & 1`; distinct from the other labels of the classification).
+pub(super) const FUSED: u8 = 251;
+
+/// Tuning of the fusion rule (see the module docs).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct FusionOptions {
+    /// Below this learned probability a cell is never made person.
+    pub min_prob: f32,
+    /// Distance ratio `r` at which the backdrop is neutral (the learned probability
+    /// decides alone).
+    pub ratio_mid: f32,
+    /// Log-odds of the backdrop's evidence per unit of `r`.
+    pub slope: f32,
+    /// Largest log-odds the backdrop's evidence can add (a changed colour may be a
+    /// shadow: the learned model still has to say person).
+    pub cap: f32,
+    /// In the shadow zone (the floor around the mark, where the person's own shadow
+    /// falls and the learned mask blurs the feet into it), below this probability a cell
+    /// is never made person.
+    pub zone_min_prob: f32,
+}
+
+impl Default for FusionOptions {
+    fn default() -> Self {
+        FusionOptions {
+            min_prob: 0.3,
+            ratio_mid: 0.8,
+            slope: 12.0,
+            cap: 1.5,
+            zone_min_prob: 0.9,
+        }
+    }
+}
+
+/// Log-odds of a probability, kept finite at 0 and 1.
+fn logit(p: f32) -> f32 {
+    let p = p.clamp(1e-6, 1.0 - 1e-6);
+    (p / (1.0 - p)).ln()
+}
+
+/// The fusion rule as tables: per 8-bit probability level, the least squared distance
+/// ratio `r^2` that makes a cell person (`f32::INFINITY`: never), off and in the shadow
+/// zone.
+#[derive(Debug, Clone)]
+pub struct FusionRule {
+    pub opts: FusionOptions,
+    min_ratio2: [f32; 256],
+    zone_min_ratio2: [f32; 256],
+}
+
+impl FusionRule {
+    /// The tables of `opts`.
+    pub fn new(opts: FusionOptions) -> Self {
+        let min_ratio2 = std::array::from_fn(|k| min_ratio2_of(level_prob(k), &opts));
+        let zone = FusionOptions {
+            min_prob: opts.min_prob.max(opts.zone_min_prob),
+            ..opts
+        };
+        let zone_min_ratio2 = std::array::from_fn(|k| min_ratio2_of(level_prob(k), &zone));
+        FusionRule {
+            opts,
+            min_ratio2,
+            zone_min_ratio2,
+        }
+    }
+
+    /// The least `r^2` making a cell of probability level `prob_q` person, in the shadow
+    /// zone or off it.
+    #[inline(always)]
+    pub fn min_ratio2_at(&self, prob_q: u8, in_zone: bool) -> f32 {
+        if in_zone {
+            self.zone_min_ratio2[prob_q as usize]
+        } else {
+            self.min_ratio2[prob_q as usize]
+        }
+    }
+
+    /// True when a cell the backdrop model does not call foreground is person, from its
+    /// learned probability (8-bit) and its squared distance ratio `r^2`.
+    #[inline(always)]
+    pub fn is_person(&self, prob_q: u8, ratio2: f32) -> bool {
+        ratio2 >= self.min_ratio2[prob_q as usize]
+    }
+
+    /// The least `r^2` making a cell of probability level `prob_q` person.
+    #[inline(always)]
+    pub fn min_ratio2(&self, prob_q: u8) -> f32 {
+        self.min_ratio2[prob_q as usize]
+    }
+}
+
+impl Default for FusionRule {
+    fn default() -> Self {
+        FusionRule::new(FusionOptions::default())
+    }
+}
+
+/// The probability an 8-bit level stands for: the middle of its bin, so the top level is
+/// not a certainty (a certain network would overrule any backdrop evidence).
+fn level_prob(k: usize) -> f32 {
+    (k as f32 + 0.5) / 256.0
+}
+
+/// The least `r^2` with `logit(p) + min(slope (r - r_mid), cap) >= 0`, or infinity.
+fn min_ratio2_of(p: f32, o: &FusionOptions) -> f32 {
+    let l = logit(p);
+    if p < o.min_prob || l + o.cap < 0.0 {
+        return f32::INFINITY;
+    }
+    let r = o.ratio_mid - l / o.slope.max(1e-6);
+    if r <= 0.0 {
+        0.0
+    } else {
+        r * r
+    }
+}
+
+/// Opens the fused cells of the prior's box (`bw x bh`): `scratch.a` holds the opened map.
+fn open_fused(scratch: &mut FuseScratch, bw: usize, bh: usize) {
+    let FuseScratch { fused, a, b, tmp, .. } = scratch;
+    a.clear();
+    a.extend_from_slice(fused);
+    for _ in 0..OPEN_STEPS {
+        imgproc::erode3x3(a, bw, bh, b, tmp);
+        std::mem::swap(a, b);
+    }
+    for _ in 0..OPEN_STEPS {
+        imgproc::dilate3x3(a, bw, bh, b, tmp);
+        std::mem::swap(a, b);
+    }
+}
+
+/// Gives the fused cells the opening removed their former labels back; returns the
+/// fused cells kept.
+fn restore_slivers(
+    coarse: &mut [u8],
+    cw: usize,
+    (x0, y0, x1, _): (usize, usize, usize, usize),
+    scratch: &FuseScratch,
+) -> u64 {
+    let bw = x1 - x0;
+    let mut kept = 0;
+    for (j, (&f, &o)) in scratch.fused.iter().zip(&scratch.a).enumerate() {
+        if f == 0 {
+            continue;
+        }
+        if o != 0 {
+            kept += 1;
+        } else {
+            coarse[(y0 + j / bw) * cw + x0 + j % bw] = scratch.before[j];
+        }
+    }
+    kept
+}
+
+/// A learned person probability on the segmentation's coarse grid, inside a box of cells.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PersonPrior {
+    /// Frame size the prior was made for, pixels.
+    pub width: u32,
+    pub height: u32,
+    /// Box of cells `[x0, x1) x [y0, y1)` holding the prior (outside it: 0).
+    x0: usize,
+    y0: usize,
+    x1: usize,
+    y1: usize,
+    /// Probabilities of the box's cells, 0..255, row-major.
+    prob: Vec<u8>,
+}
+
+impl PersonPrior {
+    /// The prior of a `width x height` frame over the pixel box `roi` (clipped to the
+    /// frame), sampling `prob(x, y)` (a probability in 0..1 at continuous frame point
+    /// `(x, y)`) at each coarse cell's pixel centre.
+    pub fn from_probability(
+        width: u32,
+        height: u32,
+        roi: PixelBox,
+        prob: impl Fn(f32, f32) -> f32,
+    ) -> Self {
+        let c = COARSE as usize;
+        let (cw, ch) = (
+            (width as usize).div_ceil(c),
+            (height as usize).div_ceil(c),
+        );
+        let x0 = (roi.min_x as usize / c).min(cw);
+        let y0 = (roi.min_y as usize / c).min(ch);
+        let x1 = (roi.max_x as usize).div_ceil(c).clamp(x0, cw);
+        let y1 = (roi.max_y as usize).div_ceil(c).clamp(y0, ch);
+        let mut out = Vec::with_capacity((x1 - x0) * (y1 - y0));
+        for cy in y0..y1 {
+            for cx in x0..x1 {
+                let p = prob((cx * c) as f32 + 0.5, (cy * c) as f32 + 0.5);
+                out.push((p.clamp(0.0, 1.0) * 255.0 + 0.5) as u8);
+            }
+        }
+        PersonPrior {
+            width,
+            height,
+            x0,
+            y0,
+            x1,
+            y1,
+            prob: out,
+        }
+    }
+
+    /// The 8-bit probability of coarse cell `(cx, cy)` (0 outside the box).
+    #[inline]
+    pub fn at_cell(&self, cx: usize, cy: usize) -> u8 {
+        if cx < self.x0 || cx >= self.x1 || cy < self.y0 || cy >= self.y1 {
+            return 0;
+        }
+        self.prob[(cy - self.y0) * (self.x1 - self.x0) + cx - self.x0]
+    }
+
+    /// The box of cells holding the prior, `(x0, y0, x1, y1)` (max exclusive).
+    pub fn cell_box(&self) -> (usize, usize, usize, usize) {
+        (self.x0, self.y0, self.x1, self.y1)
+    }
+}
+
+impl BackgroundModel {
+    /// Uses `prior` (made for this model's frame size) in the following frames'
+    /// segmentation, or none. A prior of another size is refused and none is used.
+    ///
+    /// # Errors
+    /// `FrameSize` when the prior was made for another frame size.
+    pub fn set_person_prior(
+        &mut self,
+        prior: Option<PersonPrior>,
+    ) -> Result<(), super::SegmentError> {
+        if let Some(p) = &prior {
+            if p.width != self.width || p.height != self.height {
+                self.prior = None;
+                return Err(super::SegmentError::FrameSize {
+                    want_w: self.width,
+                    want_h: self.height,
+                    got_w: p.width,
+                    got_h: p.height,
+                });
+            }
+        }
+        self.prior = prior;
+        Ok(())
+    }
+
+    /// The learned person prior in use, if any.
+    pub fn person_prior(&self) -> Option<&PersonPrior> {
+        self.prior.as_ref()
+    }
+
+    /// The fusion rule of this model.
+    pub fn fusion_rule(&self) -> &FusionRule {
+        &self.fusion
+    }
+
+    /// Replaces the fusion rule's options.
+    pub fn set_fusion_options(&mut self, opts: FusionOptions) {
+        self.fusion = FusionRule::new(opts);
+    }
+
+    /// The box (full-resolution pixels) of the coarse components of the last frame with
+    /// at least `min_cells` cells inside the pixel box `within`, or None: the person's
+    /// pieces when part of them blended into the backdrop.
+    pub fn foreground_box(&self, min_cells: u64, within: PixelBox) -> Option<PixelBox> {
+        let c = COARSE;
+        let mut acc: Option<PixelBox> = None;
+        for comp in self.runs.components.iter().filter(|k| k.area >= min_cells) {
+            let b = PixelBox {
+                min_x: (comp.min_x * c).max(within.min_x),
+                min_y: (comp.min_y * c).max(within.min_y),
+                max_x: (comp.max_x * c).min(within.max_x),
+                max_y: (comp.max_y * c).min(within.max_y),
+            };
+            if b.min_x >= b.max_x || b.min_y >= b.max_y {
+                continue;
+            }
+            acc = Some(match acc {
+                None => b,
+                Some(a) => PixelBox {
+                    min_x: a.min_x.min(b.min_x),
+                    min_y: a.min_y.min(b.min_y),
+                    max_x: a.max_x.max(b.max_x),
+                    max_y: a.max_y.max(b.max_y),
+                },
+            });
+        }
+        acc
+    }
+
+    /// Squared distance of colour `p` from the exposure-scaled model at pixel `i`, in
+    /// units of the squared noise radius (`r^2` of the module docs).
+    #[inline(always)]
+    pub(super) fn ratio2(&self, i: usize, p: [u8; 3]) -> f32 {
+        let m = self.px[i];
+        let e = m.color();
+        let g = self.gain;
+        let d = [0, 1, 2].map(|c| p[c] as f32 - g * e[c]);
+        (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) / m.radius2().max(1.0)
+    }
+
+    /// Makes the coarse cells of the prior's box that the backdrop model does not call
+    /// foreground person where the fusion rule says so (label [`FUSED`]), but for
+    /// slivers ([`OPEN_STEPS`]); returns their number. `raw` is the frame, `coarse` the
+    /// classification (`cw` cells a row).
+    pub(super) fn fuse_coarse(
+        &self,
+        raw: &[u8],
+        coarse: &mut [u8],
+        cw: usize,
+        scratch: &mut FuseScratch,
+    ) -> u64 {
+        let Some(prior) = &self.prior else {
+            return 0;
+        };
+        let (x0, y0, x1, y1) = prior.cell_box();
+        let (bw, bh) = (x1 - x0, y1 - y0);
+        scratch.fused.clear();
+        scratch.fused.resize(bw * bh, 0);
+        scratch.before.clear();
+        scratch.before.resize(bw * bh, 0);
+        self.mark_fused(raw, coarse, cw, scratch);
+        open_fused(scratch, bw, bh);
+        restore_slivers(coarse, cw, prior.cell_box(), scratch)
+    }
+
+    /// The fusion rule over the prior's box: fused cells get [`FUSED`] in `coarse` and
+    /// 255 in `scratch.fused`, their former labels in `scratch.before`.
+    fn mark_fused(&self, raw: &[u8], coarse: &mut [u8], cw: usize, scratch: &mut FuseScratch) {
+        let Some(prior) = &self.prior else {
+            return;
+        };
+        let (w, c) = (self.width as usize, COARSE as usize);
+        let (x0, y0, x1, y1) = prior.cell_box();
+        let g = self.gain;
+        let m = &self.coarse_model;
+        // Without a calibration the whole frame is zone: no cell is told apart.
+        let zoned = !self.zone_everywhere;
+        for cy in y0..y1 {
+            let prow = &prior.prob[(cy - y0) * (x1 - x0)..(cy - y0 + 1) * (x1 - x0)];
+            for (cx, &pq) in (x0..x1).zip(prow) {
+                let k = cy * cw + cx;
+                let need = self.fusion.min_ratio2_at(pq, zoned && m.zone[k] != 0);
+                if need.is_infinite() || coarse[k] == MASK_ON {
+                    continue;
+                }
+                let i = cy * c * w + cx * c;
+                let d = [
+                    raw[3 * i] as f32 - g * m.er[k] as f32,
+                    raw[3 * i + 1] as f32 - g * m.eg[k] as f32,
+                    raw[3 * i + 2] as f32 - g * m.eb[k] as f32,
+                ];
+                let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if dd >= need * (m.tau2[k] as f32).max(1.0) {
+                    let j = (cy - y0) * (x1 - x0) + cx - x0;
+                    scratch.before[j] = coarse[k];
+                    scratch.fused[j] = MASK_ON;
+                    coarse[k] = FUSED;
+                }
+            }
+        }
+    }
+
+    /// The least `r^2` making a pixel of coarse cell `(cx, cy)` person by the fusion
+    /// (infinity without a prior or where it never does).
+    #[inline]
+    pub(super) fn fused_min_ratio2(&self, cx: usize, cy: usize) -> f32 {
+        let Some(p) = &self.prior else {
+            return f32::INFINITY;
+        };
+        let cw = (self.width as usize).div_ceil(COARSE as usize);
+        let in_zone = !self.zone_everywhere
+            && self.coarse_model.zone.get(cy * cw + cx).is_some_and(|&z| z != 0);
+        self.fusion.min_ratio2_at(p.at_cell(cx, cy), in_zone)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::segment::{Mask, SegmentOptions};
+    use image::{Rgb, RgbImage};
+
+    #[test]
+    fn the_rule_follows_the_probability_and_the_distance() {
+        let r = FusionRule::default();
+        let q = |p: f32| (p * 255.0 + 0.5) as u8;
+        // A backdrop pixel's noise (r ~ 0.25): only a near-certain network claims it.
+        assert!(!r.is_person(q(0.9), 0.25 * 0.25));
+        assert!(!r.is_person(q(0.97), 0.25 * 0.25));
+        // Clothing near the backdrop (r ~ 1): a confident network decides.
+        assert!(r.is_person(q(0.6), 1.0));
+        assert!(r.is_person(q(0.9), 0.8 * 0.8));
+        // The network saying "no" is never overruled within or past the radius.
+        assert!(!r.is_person(q(0.1), 4.0));
+        assert!(!r.is_person(q(0.25), 100.0));
+        // A shadow (r > 1) needs the network above sigmoid(-cap).
+        assert!(r.is_person(q(0.5), 9.0));
+        // Monotone: more probability never needs more distance.
+        for k in 1..256 {
+            assert!(r.min_ratio2(k as u8) <= r.min_ratio2(k as u8 - 1), "{k}");
+        }
+        // On the floor around the mark a shadow under a blurred foot stays floor.
+        assert!(r.is_person(q(0.6), 9.0));
+        assert!(r.min_ratio2_at(q(0.6), true).is_infinite());
+        assert!(r.min_ratio2_at(q(0.97), true) <= 1.0);
+    }
+
+    #[test]
+    fn the_prior_is_sampled_on_the_coarse_grid() {
+        let roi = PixelBox {
+            min_x: 10,
+            min_y: 4,
+            max_x: 30,
+            max_y: 20,
+        };
+        let p = PersonPrior::from_probability(40, 24, roi, |x, _| if x < 20.0 { 1.0 } else { 0.0 });
+        assert_eq!(p.cell_box(), (5, 2, 15, 10));
+        assert_eq!(p.at_cell(6, 3), 255);
+        assert_eq!(p.at_cell(12, 3), 0);
+        assert_eq!(p.at_cell(2, 3), 0); // outside the box
+        assert_eq!(p.at_cell(6, 11), 0);
+    }
+
+    /// A 64x48 pale backdrop with a "shirt" 21 levels brighter in a box (inside the noise
+    /// radius of a one-frame model, 28 levels) and a well-seen dark "head" above it.
+    fn camouflage_frame() -> (RgbImage, RgbImage, PixelBox) {
+        let empty = RgbImage::from_pixel(64, 48, Rgb([200, 200, 196]));
+        let mut frame = empty.clone();
+        let shirt = PixelBox {
+            min_x: 20,
+            min_y: 16,
+            max_x: 44,
+            max_y: 40,
+        };
+        for y in 0..48 {
+            for x in 0..64 {
+                if x >= shirt.min_x && x < shirt.max_x && y >= shirt.min_y && y < shirt.max_y {
+                    frame.put_pixel(x, y, Rgb([214, 212, 206]));
+                } else if (26..38).contains(&x) && (4..16).contains(&y) {
+                    frame.put_pixel(x, y, Rgb([60, 40, 30]));
+                }
+            }
+        }
+        (empty, frame, shirt)
+    }
+
+    #[test]
+    fn the_prior_restores_clothing_the_backdrop_cannot_see() {
+        let (empty, frame, shirt) = camouflage_frame();
+        let opts = SegmentOptions {
+            min_person_fraction: 0.01,
+            adapt_rate: 0.0,
+            ..SegmentOptions::default()
+        };
+        let mut model = BackgroundModel::new(64, 48, opts);
+        model.learn(&empty).expect("learn");
+        let mut mask = Mask::default();
+        model.segment(&frame, &mut mask).expect("segment");
+        let inside = |m: &Mask| m.get(32, 28);
+        assert!(!inside(&mask), "the backdrop alone sees the shirt");
+        // The network: person over head and shirt, a little too large (2 px rim).
+        let prior = PersonPrior::from_probability(
+            64,
+            48,
+            PixelBox {
+                min_x: 0,
+                min_y: 0,
+                max_x: 64,
+                max_y: 48,
+            },
+            |x, y| {
+                let in_shirt = x >= 18.0 && x < 46.0 && y >= 14.0 && y < 42.0;
+                let in_head = (24.0..40.0).contains(&x) && (2.0..18.0).contains(&y);
+                if in_shirt || in_head {
+                    0.95
+                } else {
+                    0.01
+                }
+            },
+        );
+        model.set_person_prior(Some(prior)).expect("prior fits");
+        let stats = model.segment(&frame, &mut mask).expect("segment");
+        assert!(inside(&mask), "the fused mask holds the shirt");
+        assert!(stats.fused_px > 0);
+        // The network's too large rim over the unchanged backdrop stays backdrop.
+        assert!(!mask.get(19, 28) && !mask.get(45, 28) && !mask.get(32, 41));
+        assert!(mask.get(shirt.min_x as i64 + 1, 28) || mask.get(shirt.min_x as i64 + 2, 28));
+        // A prior of another size is refused.
+        let wrong = PersonPrior::from_probability(32, 24, shirt, |_, _| 1.0);
+        assert!(model.set_person_prior(Some(wrong)).is_err());
+        assert!(model.person_prior().is_none());
+    }
+
+    #[test]
+    fn a_sliver_of_fused_cells_is_left_to_the_backdrop() {
+        let (empty, mut frame, _) = camouflage_frame();
+        // Only a strip two pixels wide (one cell) of the near-backdrop colour, hanging from
+        // the head: what the network's blur would join to the person.
+        for y in 16..40 {
+            for x in 0..64 {
+                let strip = x == 30 || x == 31;
+                let p = if strip { [214, 212, 206] } else { [200, 200, 196] };
+                frame.put_pixel(x, y, Rgb(p));
+            }
+        }
+        let mut model = BackgroundModel::new(64, 48, SegmentOptions::default());
+        model.learn(&empty).expect("learn");
+        let all = PixelBox {
+            min_x: 0,
+            min_y: 0,
+            max_x: 64,
+            max_y: 48,
+        };
+        let prior = PersonPrior::from_probability(64, 48, all, |x, y| {
+            if (22.0..42.0).contains(&x) && y < 42.0 {
+                0.95
+            } else {
+                0.01
+            }
+        });
+        model.set_person_prior(Some(prior)).expect("prior fits");
+        let mut mask = Mask::default();
+        let stats = model.segment(&frame, &mut mask).expect("segment");
+        assert_eq!(stats.fused_px, 0);
+        assert!(!mask.get(30, 30) && !mask.get(31, 30));
+        assert!(mask.get(32, 10), "the head stays");
+    }
+
+    #[test]
+    fn without_a_prior_the_segmentation_is_unchanged() {
+        let (empty, frame, _) = camouflage_frame();
+        let mut a = BackgroundModel::new(64, 48, SegmentOptions::default());
+        a.learn(&empty).expect("learn");
+        let mut b = a.clone();
+        b.set_person_prior(None).expect("none");
+        let (mut ma, mut mb) = (Mask::default(), Mask::default());
+        let sa = a.segment(&frame, &mut ma).expect("segment");
+        let sb = b.segment(&frame, &mut mb).expect("segment");
+        assert_eq!(ma, mb);
+        assert_eq!(sa.fused_px, 0);
+        assert_eq!(sb.person_px, sa.person_px);
+    }
+}

@@ -1,0 +1,312 @@
+//! The learned person mask behind the backdrop segmentation (issue 20, item 3): runs the
+//! selfie segmentation network ([`crate::person::SelfieSegmenter`]) on each view's person
+//! crop at a low rate and hands its probability to the background models, which use it
+//! where they are unsure ([`crate::segment::fusion`]).
+//!
+//! The network costs about 15 ms a view, so it runs on the first frame that shows someone
+//! (then that frame is segmented again with the prior), then every [`EVERY_FRAMES`] frames
+//! to follow the subject, and sooner (after [`RETRY_FRAMES`]) when the backdrop's
+//! silhouettes are refused (nobody, several people, arms on the trunk, legs together, a
+//! blended side). In between, each frame's segmentation uses the kept prior, at the cost
+//! of a pass over the prior's cells. Without the model file the station segments with the
+//! backdrop alone and says so once.
+//!
+//! The crop is the square around the person's pieces as the backdrop sees them (every
+//! large component, not only the largest: a shirt lost in the backdrop splits the head
+//! from the legs) inside the projected standing volume over the mark; when the pieces
+//! are too short to be a person, the standing volume itself.
+//!
+//! Units: metres in the station frame, pixels in each camera's distorted image.
+
+use crate::camera::{Camera, StationCalibration, View};
+use crate::landmarks::{SilhouetteExecutor, SilhouetteResult, Verdict};
+use crate::person::{FrameRef, PersonModel, PersonOutput, Roi, SelfieSegmenter};
+use crate::segment::fusion::PersonPrior;
+use crate::segment::PixelBox;
+use glam::DVec3;
+
+/// Frames between two runs of the network while the silhouettes are accepted.
+pub const EVERY_FRAMES: usize = 8;
+/// Frames between two runs while the silhouettes are refused.
+pub const RETRY_FRAMES: usize = 3;
+/// The crop: the pieces' box, squared and widened by this (the selfie network does best
+/// on a tight crop, `tests/person_models.rs`).
+const CROP_SCALE: f32 = 1.1;
+/// A component of at least this many coarse cells is a piece of the person.
+const MIN_PIECE_CELLS: u64 = 150;
+/// The pieces' box must be at least this fraction of the standing volume's height.
+const MIN_PIECES_HEIGHT: f64 = 0.4;
+/// Margin below the mark's image in a crop extended to the feet (fraction of the
+/// standing volume's image height).
+const FEET_MARGIN: f64 = 0.03;
+/// Someone is in view when a view's largest component has this many pixels.
+const SOMEONE_PX: u64 = 1500;
+/// The standing volume over the mark, metres: half width (x), height, half depth (z).
+const VOLUME_HALF_X_M: f64 = 0.6;
+const VOLUME_HEIGHT_M: f64 = 2.2;
+const VOLUME_HALF_Z_M: f64 = 0.5;
+
+/// The selfie network and when it last ran for the current subject.
+pub struct PersonMasks {
+    model: Option<SelfieSegmenter>,
+    out: PersonOutput,
+    /// Frames since the network last ran (None: no prior for this subject yet).
+    since: Option<usize>,
+    /// Why the fusion is off, said once.
+    pub unavailable: Option<String>,
+}
+
+impl PersonMasks {
+    /// Loads the selfie network (`person::find_model`); without it the station segments
+    /// with the backdrop alone.
+    pub fn load() -> PersonMasks {
+        let (model, unavailable) = match SelfieSegmenter::load_default() {
+            Ok(m) => (Some(m), None),
+            Err(e) => (
+                None,
+                Some(format!(
+                    "the person segmentation model is not available, clothing in the backdrop's colour may be lost: {e}"
+                )),
+            ),
+        };
+        PersonMasks {
+            model,
+            out: PersonOutput::new(),
+            since: None,
+            unavailable,
+        }
+    }
+
+    /// No network: the backdrop model alone segments.
+    pub fn off() -> PersonMasks {
+        PersonMasks {
+            model: None,
+            out: PersonOutput::new(),
+            since: None,
+            unavailable: None,
+        }
+    }
+
+    /// Forgets the subject (the next frame showing someone runs the network).
+    pub fn reset(&mut self, silhouettes: &mut SilhouetteExecutor) {
+        self.since = None;
+        for view in View::BOTH {
+            // Made at nothing: clearing cannot fail.
+            let _ = silhouettes.set_person_prior(view, None);
+        }
+    }
+
+    /// Whether the network runs on this frame, judged on its backdrop silhouettes.
+    pub fn due(&self, result: &SilhouetteResult) -> bool {
+        if self.model.is_none() {
+            return false;
+        }
+        match self.since {
+            None => someone_in_view(result),
+            Some(n) => n + 1 >= EVERY_FRAMES || (n + 1 >= RETRY_FRAMES && refused(result)),
+        }
+    }
+
+    /// Makes the network run on the next frame (the subject's pose changed: the kept
+    /// prior shows the limbs where they were).
+    pub fn expire(&mut self) {
+        if self.since.is_some() {
+            self.since = Some(EVERY_FRAMES);
+        }
+    }
+
+    /// Counts a frame on which the network did not run.
+    pub fn tick(&mut self) {
+        self.since = self.since.map(|n| n + 1);
+    }
+
+    /// Runs the network on both views' person crops and gives the background models its
+    /// probability as their prior.
+    ///
+    /// # Errors
+    /// A message when the network fails on a view (that view keeps no prior).
+    pub fn run(
+        &mut self,
+        front: &image::RgbImage,
+        side: &image::RgbImage,
+        calib: &StationCalibration,
+        silhouettes: &mut SilhouetteExecutor,
+    ) -> Result<(), String> {
+        self.since = Some(0);
+        let Some(model) = self.model.as_mut() else {
+            return Ok(());
+        };
+        let mut errors = Vec::new();
+        for (view, frame) in [(View::Front, front), (View::Side, side)] {
+            let (w, h) = (frame.width(), frame.height());
+            let volume = standing_volume_box(calib.camera(view), w, h);
+            let Some(volume) = volume else {
+                let _ = silhouettes.set_person_prior(view, None); // clearing cannot fail
+                continue;
+            };
+            let crop = person_crop(silhouettes, calib.camera(view), view, volume);
+            let roi = Roi::square_around(
+                crop.min_x as f32,
+                crop.min_y as f32,
+                crop.max_x as f32,
+                crop.max_y as f32,
+                CROP_SCALE,
+            );
+            match model.infer(FrameRef::from_image(frame), roi, &mut self.out) {
+                Ok(()) => {
+                    let mask = &self.out.mask;
+                    let prior = PersonPrior::from_probability(w, h, roi_box(roi, w, h), |x, y| {
+                        mask.at(x, y)
+                    });
+                    if let Err(e) = silhouettes.set_person_prior(view, Some(prior)) {
+                        errors.push(format!("{} view person mask: {e}", view.name()));
+                    }
+                }
+                Err(e) => {
+                    let _ = silhouettes.set_person_prior(view, None); // clearing cannot fail
+                    errors.push(format!("{} view person mask: {e}", view.name()));
+                }
+            }
+        }
+        if errors.is_empty() {
+            Ok(())
+        } else {
+            Err(errors.join("; "))
+        }
+    }
+}
+
+/// True when a view's backdrop silhouette holds something person-sized.
+fn someone_in_view(result: &SilhouetteResult) -> bool {
+    [&result.front, &result.side]
+        .iter()
+        .any(|a| a.stats.largest_px >= SOMEONE_PX)
+}
+
+/// True when the silhouettes were refused for what a lost piece of clothing causes.
+fn refused(result: &SilhouetteResult) -> bool {
+    result.landmarks.verdicts.iter().any(|v| {
+        matches!(
+            v,
+            Verdict::NoPerson
+                | Verdict::MultiplePeople
+                | Verdict::ArmsTouchingTorso { .. }
+                | Verdict::LegsTogether
+                | Verdict::BlendsIntoBackdrop { .. }
+        )
+    })
+}
+
+/// The pixel box of the standing volume over the mark in a `w x h` frame (clipped), or
+/// None when it is out of view.
+fn standing_volume_box(camera: &Camera, w: u32, h: u32) -> Option<PixelBox> {
+    let mut lo = [f64::INFINITY; 2];
+    let mut hi = [f64::NEG_INFINITY; 2];
+    for sx in [-1.0, 1.0] {
+        for y in [0.0, VOLUME_HEIGHT_M] {
+            for sz in [-1.0, 1.0] {
+                let p = DVec3::new(sx * VOLUME_HALF_X_M, y, sz * VOLUME_HALF_Z_M);
+                if let Some(px) = camera.project(p) {
+                    lo = [lo[0].min(px.x), lo[1].min(px.y)];
+                    hi = [hi[0].max(px.x), hi[1].max(px.y)];
+                }
+            }
+        }
+    }
+    let b = PixelBox {
+        min_x: lo[0].clamp(0.0, w as f64) as u32,
+        min_y: lo[1].clamp(0.0, h as f64) as u32,
+        max_x: hi[0].ceil().clamp(0.0, w as f64) as u32,
+        max_y: hi[1].ceil().clamp(0.0, h as f64) as u32,
+    };
+    (b.min_x < b.max_x && b.min_y < b.max_y).then_some(b)
+}
+
+/// The box fed to the network: the person's pieces inside the standing volume, down to
+/// the mark at least (lower legs and feet lost against the floor would otherwise fall
+/// out of the crop), or the volume when the pieces are too short to be a person.
+fn person_crop(
+    silhouettes: &SilhouetteExecutor,
+    camera: &Camera,
+    view: View,
+    volume: PixelBox,
+) -> PixelBox {
+    let min_height = MIN_PIECES_HEIGHT * (volume.max_y - volume.min_y) as f64;
+    // The soles on the mark: pieces that stop short of them are extended to a little
+    // below (pieces reaching them are kept as they are).
+    let margin = FEET_MARGIN * (volume.max_y - volume.min_y) as f64;
+    let mark_y = camera.project(DVec3::ZERO).map(|p| p.y);
+    let reach = |b: &PixelBox| match mark_y {
+        Some(y) if (b.max_y as f64) < y - 2.0 * margin => (y + margin).max(0.0) as u32,
+        _ => b.max_y,
+    };
+    silhouettes
+        .model(view)
+        .foreground_box(MIN_PIECE_CELLS, volume)
+        .filter(|b| (b.max_y - b.min_y) as f64 >= min_height)
+        .map(|b| PixelBox {
+            max_y: reach(&b).clamp(b.max_y, volume.max_y.max(b.max_y)),
+            ..b
+        })
+        .unwrap_or(volume)
+}
+
+/// The pixels of a network crop inside a `w x h` frame.
+fn roi_box(roi: Roi, w: u32, h: u32) -> PixelBox {
+    PixelBox {
+        min_x: roi.x0.clamp(0.0, w as f32) as u32,
+        min_y: roi.y0.clamp(0.0, h as f32) as u32,
+        max_x: (roi.x0 + roi.width).ceil().clamp(0.0, w as f32) as u32,
+        max_y: (roi.y0 + roi.height).ceil().clamp(0.0, h as f32) as u32,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_standing_volume_holds_the_mark_in_both_views() {
+        let calib = StationCalibration::nominal(720, 1280, 1100.0, 3.0, 1.1, 1.0);
+        for view in View::BOTH {
+            let cam = calib.camera(view);
+            let b = standing_volume_box(cam, 720, 1280).expect("in view");
+            for y in [0.1, 1.0, 1.8] {
+                let p = cam.project(DVec3::new(0.0, y, 0.0)).expect("projects");
+                assert!(
+                    p.x >= b.min_x as f64
+                        && p.x < b.max_x as f64
+                        && p.y >= b.min_y as f64
+                        && p.y < b.max_y as f64,
+                    "{view:?} {y}: {p} outside {b:?}"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn the_network_runs_at_first_then_at_a_low_rate() {
+        let mut m = PersonMasks::load();
+        assert!(m.model.is_some(), "{:?}", m.unavailable);
+        let mut r = SilhouetteResult::empty();
+        assert!(!m.due(&r), "nobody in view");
+        r.front.stats.largest_px = 50_000;
+        assert!(m.due(&r));
+        m.since = Some(0);
+        let mut runs = 0;
+        for _ in 0..3 * EVERY_FRAMES {
+            if m.due(&r) {
+                runs += 1;
+                m.since = Some(0);
+            } else {
+                m.tick();
+            }
+        }
+        assert_eq!(runs, 3);
+        // Refused silhouettes bring the next run forward.
+        r.landmarks.verdicts.push(Verdict::MultiplePeople);
+        m.since = Some(RETRY_FRAMES - 1);
+        assert!(m.due(&r));
+        assert!(!PersonMasks::off().due(&r));
+    }
+}
