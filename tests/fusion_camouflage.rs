@@ -5,8 +5,9 @@
 //! silhouette is far too small); with it the silhouettes match the truth and the frames
 //! are fitted.
 
+use fitstation::cli::{run_offline, RecordingSource};
 use fitstation::recording::FrameFormat;
-use fitstation::station::cli::{default_library, run_offline, RecordingSource};
+use fitstation::station::default_library;
 use fitstation::station::{StationOptions, StationProcessor};
 use fitstation::synth::scene::Clothing;
 use fitstation::synth::{load_truth, render_recording, set_member, truth_dir};
@@ -122,9 +123,16 @@ fn the_person_mask_restores_clothing_in_the_backdrops_colour() {
     let lost = without.fitted == 0
         || without.iou_front.min(without.iou_side) < 0.8
         || without.chest_error_mm.is_none_or(|e| e.abs() > 60.0);
-    assert!(lost, "the backdrop model alone was expected to lose the clothing");
+    assert!(
+        lost,
+        "the backdrop model alone was expected to lose the clothing"
+    );
     // Fused: every subject frame fitted, silhouettes close to the truth, the chest near.
-    assert_eq!(with.fitted, SUBJECT_FRAMES as u64, "{}", with.report["messages"]);
+    assert_eq!(
+        with.fitted, SUBJECT_FRAMES as u64,
+        "{}",
+        with.report["messages"]
+    );
     assert!(
         with.iou_front >= 0.95 && with.iou_side >= 0.93,
         "IoU front {:.3}, side {:.3}",

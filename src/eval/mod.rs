@@ -583,7 +583,11 @@ impl EvalTable {
             )
         });
         let iou = |v: &str| {
-            let x: Vec<f64> = self.rows.iter().filter_map(|r| r.mask_iou.get(v).copied()).collect();
+            let x: Vec<f64> = self
+                .rows
+                .iter()
+                .filter_map(|r| r.mask_iou.get(v).copied())
+                .collect();
             (!x.is_empty()).then(|| x.iter().sum::<f64>() / x.len() as f64)
         };
         (refused, iou("front"), iou("side"))
@@ -594,7 +598,9 @@ impl EvalTable {
         let (refused, f, s) = self.refusals_line();
         let mut out = String::new();
         if let Some((r, n)) = refused {
-            out.push_str(&format!("\nframes refused (subject in view, not fitted): {r} of {n}\n"));
+            out.push_str(&format!(
+                "\nframes refused (subject in view, not fitted): {r} of {n}\n"
+            ));
         }
         if let (Some(f), Some(s)) = (f, s) {
             out.push_str(&format!("mean mask IoU: front {f:.3}, side {s:.3}\n"));

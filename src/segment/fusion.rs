@@ -177,7 +177,9 @@ fn min_ratio2_of(p: f32, o: &FusionOptions) -> f32 {
 
 /// Opens the fused cells of the prior's box (`bw x bh`): `scratch.a` holds the opened map.
 fn open_fused(scratch: &mut FuseScratch, bw: usize, bh: usize) {
-    let FuseScratch { fused, a, b, tmp, .. } = scratch;
+    let FuseScratch {
+        fused, a, b, tmp, ..
+    } = scratch;
     a.clear();
     a.extend_from_slice(fused);
     for _ in 0..OPEN_STEPS {
@@ -239,10 +241,7 @@ impl PersonPrior {
         prob: impl Fn(f32, f32) -> f32,
     ) -> Self {
         let c = COARSE as usize;
-        let (cw, ch) = (
-            (width as usize).div_ceil(c),
-            (height as usize).div_ceil(c),
-        );
+        let (cw, ch) = ((width as usize).div_ceil(c), (height as usize).div_ceil(c));
         let x0 = (roi.min_x as usize / c).min(cw);
         let y0 = (roi.min_y as usize / c).min(ch);
         let x1 = (roi.max_x as usize).div_ceil(c).clamp(x0, cw);
@@ -431,7 +430,11 @@ impl BackgroundModel {
         };
         let cw = (self.width as usize).div_ceil(COARSE as usize);
         let in_zone = !self.zone_everywhere
-            && self.coarse_model.zone.get(cy * cw + cx).is_some_and(|&z| z != 0);
+            && self
+                .coarse_model
+                .zone
+                .get(cy * cw + cx)
+                .is_some_and(|&z| z != 0);
         self.fusion.min_ratio2_at(p.at_cell(cx, cy), in_zone)
     }
 }
@@ -561,7 +564,11 @@ mod tests {
         for y in 16..40 {
             for x in 0..64 {
                 let strip = x == 30 || x == 31;
-                let p = if strip { [214, 212, 206] } else { [200, 200, 196] };
+                let p = if strip {
+                    [214, 212, 206]
+                } else {
+                    [200, 200, 196]
+                };
                 frame.put_pixel(x, y, Rgb(p));
             }
         }

@@ -1242,10 +1242,10 @@ impl BackgroundModel {
                             || (bridged && self.is_changed(i, p))
                             || (fused_ratio2.is_finite() && self.ratio2(i, p) >= fused_ratio2)
                         {
-                                BAND_FG
-                            } else {
-                                BAND_BG
-                            };
+                            BAND_FG
+                        } else {
+                            BAND_BG
+                        };
                         self.band_px.push([x as u32, y as u32]);
                     }
                 }

@@ -275,12 +275,9 @@ impl StationProcessor {
             self.person_masks.tick();
             return Ok(());
         }
-        let ran = self.person_masks.run(
-            &pair.front,
-            &pair.side,
-            &self.calib,
-            &mut self.silhouettes,
-        );
+        let ran =
+            self.person_masks
+                .run(&pair.front, &pair.side, &self.calib, &mut self.silhouettes);
         timer.lap("person_mask");
         let mut fused = SilhouetteResult::empty();
         std::mem::swap(&mut fused, result);
@@ -292,8 +289,12 @@ impl StationProcessor {
             Ok(()) => *result = fused,
             Err(e) => {
                 // `fused` may be half written: segment the frame as it was.
-                let _ = self.silhouettes.set_person_prior(crate::camera::View::Front, None);
-                let _ = self.silhouettes.set_person_prior(crate::camera::View::Side, None);
+                let _ = self
+                    .silhouettes
+                    .set_person_prior(crate::camera::View::Front, None);
+                let _ = self
+                    .silhouettes
+                    .set_person_prior(crate::camera::View::Side, None);
                 self.silhouettes
                     .process_into(&pair.front, &pair.side, &mut fused)
                     .map_err(|e| format!("frame segmented again without the person mask: {e}"))?;
@@ -503,7 +504,8 @@ impl FrameProcessor for StationProcessor {
             // segmentation that fuses the person mask in.
             let st = &self.silhouette_result;
             let fuse = st.front.stats.phase_ms.fuse + st.side.stats.phase_ms.fuse;
-            s.timings_ms.push(("silhouettes_fuse_part".into(), fuse as f64));
+            s.timings_ms
+                .push(("silhouettes_fuse_part".into(), fuse as f64));
         }
         if let Some(dir) = self.opts.masks_out.clone() {
             if s.phase != Phase::LearningBackdrop {

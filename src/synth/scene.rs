@@ -162,8 +162,14 @@ impl Look {
 /// levels) in a random direction, as a linear albedo.
 fn camouflage_colour(base: [f32; 3], rng: &mut SplitMix64) -> [f32; 3] {
     let dist = rng.range(CAMOUFLAGE_MIN_LEVELS, CAMOUFLAGE_MAX_LEVELS) as f32;
-    let mut dir = [rng.normal() as f32, rng.normal() as f32, rng.normal() as f32];
-    let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2]).sqrt().max(1e-6);
+    let mut dir = [
+        rng.normal() as f32,
+        rng.normal() as f32,
+        rng.normal() as f32,
+    ];
+    let n = (dir[0] * dir[0] + dir[1] * dir[1] + dir[2] * dir[2])
+        .sqrt()
+        .max(1e-6);
     dir = dir.map(|d| d / n);
     // A channel that would leave the range turns back (the distance is kept).
     for (d, b) in dir.iter_mut().zip(base) {
@@ -171,7 +177,8 @@ fn camouflage_colour(base: [f32; 3], rng: &mut SplitMix64) -> [f32; 3] {
             *d = -*d;
         }
     }
-    let level: [u8; 3] = std::array::from_fn(|k| (base[k] + dist * dir[k]).round().clamp(0.0, 255.0) as u8);
+    let level: [u8; 3] =
+        std::array::from_fn(|k| (base[k] + dist * dir[k]).round().clamp(0.0, 255.0) as u8);
     srgb_to_linear(level)
 }
 
