@@ -1,0 +1,489 @@
+//! Reading any H.264 MP4 in presentation order, restarts at clean sync samples, and the
+//! fallbacks (a cut file's media data, an installed ffmpeg for other formats).
+
+use super::*;
+
+pub(super) enum Index {
+    /// The MP4 index: the reader and the track id.
+    Track {
+        reader: Box<mp4::Mp4Reader<BufReader<File>>>,
+        track: u32,
+        sps: Vec<u8>,
+        pps: Vec<u8>,
+    },
+    /// A video track in another codec than H.264 (frames, width, height): frames come
+    /// from ffmpeg.
+    External { len: usize, width: u32, height: u32 },
+    /// No usable index: pictures found by walking the media data.
+    Scanned {
+        file: BufReader<File>,
+        pictures: Vec<RawPicture>,
+    },
+}
+
+/// Reads one H.264 MP4 file frame by frame (sequential reading is cheap; going back
+/// restarts decoding at the last clean sync sample).
+pub struct Mp4VideoReader {
+    pub(super) path: PathBuf,
+    pub(super) index: Index,
+    pub(super) decoder: Decoder,
+    pub(super) len: usize,
+    pub(super) width: u32,
+    pub(super) height: u32,
+    /// Decoding-order index of the next sample to feed the decoder.
+    pub(super) next_sample: usize,
+    /// Presentation index (frame) of the next picture the decoder gives.
+    pub(super) next_out: usize,
+    /// Pictures flushed from the decoder at the end of the stream, in order.
+    pub(super) pending: std::collections::VecDeque<RgbImage>,
+    /// Samples decoding may restart at, ascending: sync samples with every earlier
+    /// sample presented before them (their sample index is their frame index).
+    pub(super) sync: Vec<usize>,
+    pub(super) last: Option<(usize, RgbImage)>,
+    pub(super) annexb: Vec<u8>,
+    pub(super) warnings: Vec<String>,
+    /// Streams OpenH264 cannot decode (4:2:2 / 4:4:4 chroma, more than 8 bits) go
+    /// through an installed `ffmpeg` instead.
+    pub(super) external: Option<FfmpegPipe>,
+}
+
+/// A decoder that keeps reordered pictures until they are due (no flush after each
+/// sample: that would take a picture out of order).
+pub(super) fn new_decoder(path: &Path) -> Result<Decoder, VideoError> {
+    Decoder::with_api_config(
+        OpenH264API::from_source(),
+        DecoderConfig::new().flush_after_decode(Flush::NoFlush),
+    )
+    .map_err(|e| verr(path, format!("H.264 decoder: {e}")))
+}
+
+/// The sync samples at which decoding can restart with the frame of the same index: every
+/// sample decoded before it is presented before it and every sample decoded after it is
+/// presented after it (not so at an open group's I-frame, whose leading B-frames follow
+/// it in decoding order and precede it on screen). `cts` are the samples' composition
+/// times in decoding order.
+pub(super) fn clean_restarts(sync: &[usize], cts: &[i64]) -> Vec<usize> {
+    let mut min_after = vec![i64::MAX; cts.len() + 1];
+    for i in (0..cts.len()).rev() {
+        min_after[i] = min_after[i + 1].min(cts[i]);
+    }
+    let mut max_before = vec![i64::MIN; cts.len() + 1];
+    for i in 0..cts.len() {
+        max_before[i + 1] = max_before[i].max(cts[i]);
+    }
+    sync.iter()
+        .copied()
+        .filter(|&i| i < cts.len() && max_before[i] < cts[i] && min_after[i + 1] > cts[i])
+        .collect()
+}
+
+impl Mp4VideoReader {
+    pub fn open(path: &Path) -> Result<Self, VideoError> {
+        let file = File::open(path).map_err(|source| VideoError::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        let size = file
+            .metadata()
+            .map_err(|source| VideoError::Io {
+                file: path.to_path_buf(),
+                source,
+            })?
+            .len();
+        let mut warnings = Vec::new();
+        let mut external = None;
+        let index = match Self::open_index(path, &file, size) {
+            Ok(i) => i,
+            Err(msg) if let Some((len, w, h, codec)) = other_video_track(&file, size) => {
+                // A readable MP4 whose video is not H.264 (MPEG-4 Part 2 from OpenCV's
+                // VideoWriter, say): not what spec/formats.md asks for, but readable.
+                let pipe = FfmpegPipe::new(path, u32::from(w), u32::from(h)).map_err(|e| {
+                    verr(
+                        path,
+                        format!(
+                            "{msg}: the video track is {codec}; recordings hold H.264 \
+                             (spec/formats.md) and ffmpeg, used for other codecs when \
+                             installed, could not be run ({e})"
+                        ),
+                    )
+                })?;
+                warnings.push(format!(
+                    "{}: the video track is {codec}, not H.264: decoded by ffmpeg",
+                    path.display()
+                ));
+                external = Some(pipe);
+                Index::External {
+                    len,
+                    width: u32::from(w),
+                    height: u32::from(h),
+                }
+            }
+            Err(msg) => {
+                let pictures = scan_mdat(path, size)?;
+                if pictures.is_empty() {
+                    // Cut before its index with nothing recoverable (a codec other than
+                    // H.264 cannot be walked without the index): say so, rather than let
+                    // the recording report "no frames" for a file that is there.
+                    return Err(verr(
+                        path,
+                        format!(
+                            "{msg}; no complete H.264 picture in the media data either: \
+                             the file was cut before its index was written (frames of \
+                             other codecs cannot be recovered without it)"
+                        ),
+                    ));
+                }
+                warnings.push(format!(
+                    "{}: {msg}; recovered {} frame(s) from the media data (file cut short?)",
+                    path.display(),
+                    pictures.len()
+                ));
+                let f = File::open(path).map_err(|source| VideoError::Io {
+                    file: path.to_path_buf(),
+                    source,
+                })?;
+                Index::Scanned {
+                    file: BufReader::new(f),
+                    pictures,
+                }
+            }
+        };
+        let sync: Vec<usize> = match &index {
+            Index::Track { reader, track, .. } => {
+                let t = reader.tracks().get(track);
+                let sync: Vec<usize> = match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
+                    // No sync table: every sample is a sync sample (ISO 14496-12).
+                    None => (0..t.map_or(0, |t| t.sample_count() as usize)).collect(),
+                    Some(stss) => stss
+                        .entries
+                        .iter()
+                        .filter(|&&e| e >= 1)
+                        .map(|&e| e as usize - 1)
+                        .collect(),
+                };
+                match t {
+                    Some(t) => clean_restarts(&sync, &composition_times(t)),
+                    None => sync,
+                }
+            }
+            Index::Scanned { pictures, .. } => pictures
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.idr)
+                .map(|(i, _)| i)
+                .collect(),
+            Index::External { .. } => Vec::new(),
+        };
+        let (len, width, height) = match &index {
+            Index::Track { reader, track, .. } => {
+                let t = reader
+                    .tracks()
+                    .get(track)
+                    .ok_or_else(|| verr(path, "track vanished"))?;
+                (
+                    t.sample_count() as usize,
+                    t.width() as u32,
+                    t.height() as u32,
+                )
+            }
+            Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
+            Index::External { len, width, height } => (*len, *width, *height),
+        };
+        let external = match &index {
+            Index::External { .. } => external,
+            Index::Track { sps, .. } => match SpsFormat::parse(sps) {
+                Some(f) if !f.openh264_decodes() => {
+                    let pipe = FfmpegPipe::new(path, width, height).map_err(|e| {
+                        verr(
+                            path,
+                            format!(
+                                "H.264 {f}: the built-in decoder (OpenH264) reads 8-bit 4:2:0 \
+                                 only, and ffmpeg, used for other streams when installed, \
+                                 could not be run ({e}); re-encode with `ffmpeg -i IN \
+                                 -pix_fmt yuv420p OUT.mp4`"
+                            ),
+                        )
+                    })?;
+                    warnings.push(format!(
+                        "{}: H.264 {f} is decoded by ffmpeg (OpenH264 reads 8-bit 4:2:0 only)",
+                        path.display()
+                    ));
+                    Some(pipe)
+                }
+                _ => None,
+            },
+            Index::Scanned { .. } => None,
+        };
+        let decoder = new_decoder(path)?;
+        Ok(Mp4VideoReader {
+            external,
+            path: path.to_path_buf(),
+            index,
+            decoder,
+            len,
+            width,
+            height,
+            next_sample: 0,
+            next_out: 0,
+            pending: Default::default(),
+            sync,
+            last: None,
+            annexb: Vec::new(),
+            warnings,
+        })
+    }
+
+    pub(super) fn open_index(path: &Path, file: &File, size: u64) -> Result<Index, String> {
+        let f = file.try_clone().map_err(|e| e.to_string())?;
+        let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size)
+            .map_err(|e| format!("no readable MP4 index ({e})"))?;
+        let track = reader
+            .tracks()
+            .iter()
+            .filter(|(_, t)| matches!(t.media_type(), Ok(mp4::MediaType::H264)))
+            .map(|(id, _)| *id)
+            .min()
+            .ok_or_else(|| format!("{}: no H.264 video track", path.display()))?;
+        let t = reader.tracks().get(&track).ok_or("track vanished")?;
+        let sps = t
+            .sequence_parameter_set()
+            .map_err(|e| e.to_string())?
+            .to_vec();
+        let pps = t
+            .picture_parameter_set()
+            .map_err(|e| e.to_string())?
+            .to_vec();
+        Ok(Index::Track {
+            reader: Box::new(reader),
+            track,
+            sps,
+            pps,
+        })
+    }
+
+    /// Number of frames the file holds (per its index, or recovered).
+    pub fn len(&self) -> usize {
+        self.len
+    }
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+    /// Frame size from the track header (0 until known for recovered files).
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+    /// Problems met so far (recovery, undecodable frames).
+    pub fn warnings(&self) -> &[String] {
+        &self.warnings
+    }
+
+    /// Decodes frame `k`.
+    pub fn frame(&mut self, k: usize) -> Result<RgbImage, VideoError> {
+        if k >= self.len {
+            return Err(verr(
+                &self.path,
+                format!("frame {k} beyond the {} frames", self.len),
+            ));
+        }
+        if let Some(pipe) = &mut self.external {
+            return pipe
+                .frame(k)
+                .map_err(|e| verr(&self.path, format!("frame {k}: ffmpeg: {e}")));
+        }
+        if let Some((i, img)) = &self.last {
+            if *i == k {
+                return Ok(img.clone());
+            }
+        }
+        // Restart at the last clean sync sample at or before k when going back or when
+        // it lies ahead of the decoder (skips decoding frames nobody asked for).
+        let restart = self
+            .sync
+            .iter()
+            .rev()
+            .find(|&&i| i <= k)
+            .copied()
+            .unwrap_or(0);
+        if k < self.next_out || restart > self.next_out {
+            self.decoder = new_decoder(&self.path)?;
+            self.next_sample = restart;
+            self.next_out = restart;
+            self.pending.clear();
+        }
+        // The decoder gives pictures in presentation order: count them out until frame
+        // k's turn. A sample that fails to decode is taken to have been one picture.
+        loop {
+            let picture = if let Some(p) = self.pending.pop_front() {
+                Ok(p)
+            } else if self.next_sample < self.len {
+                let i = self.next_sample;
+                self.next_sample += 1;
+                match self.decode_sample(i) {
+                    Ok(Some(p)) => Ok(p),
+                    Ok(None) => continue,
+                    Err(e) => Err(e),
+                }
+            } else {
+                // End of the stream: the pictures the decoder still holds.
+                let rest = self.flush()?;
+                if rest.is_empty() {
+                    break;
+                }
+                self.pending.extend(rest);
+                continue;
+            };
+            let at = self.next_out;
+            self.next_out += 1;
+            match picture {
+                Ok(img) if at == k => {
+                    self.last = Some((k, img.clone()));
+                    return Ok(img);
+                }
+                Err(e) if at == k => return Err(e),
+                Err(e) => self.warnings.push(e.to_string()),
+                Ok(_) => {}
+            }
+        }
+        Err(verr(&self.path, format!("frame {k} not decoded")))
+    }
+
+    /// The pictures the decoder still holds (end of the stream), in order.
+    pub(super) fn flush(&mut self) -> Result<Vec<RgbImage>, VideoError> {
+        let path = self.path.clone();
+        let rest = self
+            .decoder
+            .flush_remaining()
+            .map_err(|e| verr(&path, format!("H.264 flush: {e}")))?;
+        Ok(rest.iter().map(to_rgb).collect())
+    }
+
+    /// Feeds sample `i` (decoding order) to the decoder; the picture it gives, if any
+    /// (a reordering stream gives its pictures later).
+    pub(super) fn decode_sample(&mut self, i: usize) -> Result<Option<RgbImage>, VideoError> {
+        let path = self.path.clone();
+        self.annexb.clear();
+        match &mut self.index {
+            Index::Track {
+                reader,
+                track,
+                sps,
+                pps,
+            } => {
+                let sample = reader
+                    .read_sample(*track, i as u32 + 1)
+                    .map_err(|e| verr(&path, format!("frame {i}: {e}")))?
+                    .ok_or_else(|| verr(&path, format!("frame {i}: missing sample")))?;
+                if sample.is_sync {
+                    for ps in [&*sps, &*pps] {
+                        self.annexb.extend_from_slice(&START_CODE);
+                        self.annexb.extend_from_slice(ps);
+                    }
+                }
+                let b: &[u8] = &sample.bytes;
+                let mut p = 0usize;
+                while p + 4 <= b.len() {
+                    let n = u32::from_be_bytes([b[p], b[p + 1], b[p + 2], b[p + 3]]) as usize;
+                    p += 4;
+                    if n == 0 || p + n > b.len() {
+                        return Err(verr(&path, format!("frame {i}: corrupt NAL length")));
+                    }
+                    self.annexb.extend_from_slice(&START_CODE);
+                    self.annexb.extend_from_slice(&b[p..p + n]);
+                    p += n;
+                }
+            }
+            Index::External { .. } => {
+                return Err(verr(&path, format!("frame {i}: no H.264 track")));
+            }
+            Index::Scanned { file, pictures } => {
+                let pic = pictures
+                    .get(i)
+                    .ok_or_else(|| verr(&path, format!("frame {i} missing")))?;
+                for &(off, n) in &pic.nals {
+                    file.seek(SeekFrom::Start(off))
+                        .map_err(|source| VideoError::Io {
+                            file: path.clone(),
+                            source,
+                        })?;
+                    let start = self.annexb.len() + START_CODE.len();
+                    self.annexb.extend_from_slice(&START_CODE);
+                    self.annexb.resize(start + n as usize, 0);
+                    file.read_exact(&mut self.annexb[start..])
+                        .map_err(|source| VideoError::Io {
+                            file: path.clone(),
+                            source,
+                        })?;
+                }
+            }
+        }
+        let yuv = self
+            .decoder
+            .decode(&self.annexb)
+            .map_err(|e| verr(&path, format!("sample {i}: H.264 decode: {e}")))?;
+        let Some(yuv) = yuv else {
+            return Ok(None);
+        };
+        let img = to_rgb(&yuv);
+        (self.width, self.height) = img.dimensions();
+        Ok(Some(img))
+    }
+}
+
+/// The first video track of a readable MP4 that holds no H.264 track: (frames, width,
+/// height, codec name).
+pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u16, String)> {
+    // The clone shares the file position the failed H.264 look left behind.
+    let mut f = file.try_clone().ok()?;
+    f.seek(SeekFrom::Start(0)).ok()?;
+    let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size).ok()?;
+    let mut tracks: Vec<_> = reader.tracks().iter().collect();
+    tracks.sort_by_key(|(id, _)| **id);
+    let (_, t) = tracks
+        .into_iter()
+        .find(|(_, t)| matches!(t.track_type(), Ok(mp4::TrackType::Video)))?;
+    let codec = match t.box_type() {
+        Ok(b) => b.to_string(),
+        Err(_) => "a codec the MP4 reader does not know (MPEG-4 Part 2?)".to_string(),
+    };
+    let (w, h) = (t.width(), t.height());
+    (t.sample_count() > 0 && w > 0 && h > 0).then(|| (t.sample_count() as usize, w, h, codec))
+}
+
+/// A decoded picture as 8-bit RGB.
+pub(super) fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
+    let (w, h) = yuv.dimensions();
+    let mut img = RgbImage::new(w as u32, h as u32);
+    yuv.write_rgb8(img.as_mut());
+    img
+}
+
+/// Composition times of a track's samples in decoding order: decoding times (`stts`)
+/// plus composition offsets (`ctts`, none: presented in decoding order).
+pub(super) fn composition_times(t: &mp4::Mp4Track) -> Vec<i64> {
+    let stbl = &t.trak.mdia.minf.stbl;
+    let n = t.sample_count() as usize;
+    let mut cts = Vec::with_capacity(n);
+    let mut time = 0i64;
+    for e in &stbl.stts.entries {
+        for _ in 0..e.sample_count {
+            if cts.len() == n {
+                break;
+            }
+            cts.push(time);
+            time += i64::from(e.sample_delta);
+        }
+    }
+    cts.resize(n, time);
+    if let Some(ctts) = &stbl.ctts {
+        let mut i = 0usize;
+        for e in &ctts.entries {
+            for _ in 0..e.sample_count {
+                if let Some(c) = cts.get_mut(i) {
+                    *c += i64::from(e.sample_offset);
+                }
+                i += 1;
+            }
+        }
+    }
+    cts
+}
