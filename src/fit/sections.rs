@@ -878,6 +878,40 @@ mod tests {
         (mesh, set)
     }
 
+    /// Targets at the controls, the front ones moved forward by `dz(y)`.
+    fn front_moved(
+        mesh: &crate::mesh::TriMesh,
+        set: &ControlSet,
+        dz: impl Fn(f64) -> f64,
+    ) -> Vec<Option<DVec3>> {
+        set.controls
+            .iter()
+            .map(|c| {
+                let p = mesh.positions[c.vertex as usize];
+                let d = if c.status == Status::Front {
+                    dz(p.y)
+                } else {
+                    0.0
+                };
+                Some(p + DVec3::Z * d)
+            })
+            .collect()
+    }
+
+    /// How far the front-most vertex between heights `y0` and `y1` moved (its target).
+    fn front_shift(mesh: &crate::mesh::TriMesh, out: &[Option<DVec3>], y0: f64, y1: f64) -> f64 {
+        let mut best = (f64::MIN, 0.0);
+        for (v, t) in out.iter().enumerate() {
+            let p = mesh.positions[v];
+            if let Some(t) = t.filter(|_| p.y >= y0 && p.y <= y1 && p.x.abs() < 0.02) {
+                if p.z > best.0 {
+                    best = (p.z, t.z - p.z);
+                }
+            }
+        }
+        best.1
+    }
+
     #[test]
     fn a_known_limb_hides_its_edges_and_the_trunk_is_followed_elsewhere() {
         // A cylinder (front at z = +0.10) seen by a side view whose front edge has a belly
@@ -893,19 +927,7 @@ mod tests {
                 0.0
             }
         };
-        let targets: Vec<Option<DVec3>> = set
-            .controls
-            .iter()
-            .map(|c| {
-                let p = mesh.positions[c.vertex as usize];
-                let dz = if c.status == Status::Front {
-                    out_at(p.y)
-                } else {
-                    0.0
-                };
-                Some(p + DVec3::Z * dz)
-            })
-            .collect();
+        let targets = front_moved(&mesh, &set, out_at);
         let forearm = SideOccluder {
             a: glam::DVec2::new(0.60, 0.15),
             b: glam::DVec2::new(0.80, 0.15),
@@ -923,19 +945,7 @@ mod tests {
             &mut scratch,
             &mut out,
         );
-        // The front-most vertex's target at a height: how far the front moved.
-        let front_shift = |y0: f64, y1: f64| -> f64 {
-            let mut best = (f64::MIN, 0.0);
-            for (v, t) in out.iter().enumerate() {
-                let p = mesh.positions[v];
-                if let Some(t) = t.filter(|_| p.y >= y0 && p.y <= y1 && p.x.abs() < 0.02) {
-                    if p.z > best.0 {
-                        best = (p.z, t.z - p.z);
-                    }
-                }
-            }
-            best.1
-        };
+        let front_shift = |y0: f64, y1: f64| front_shift(&mesh, &out, y0, y1);
         let belly = front_shift(0.33, 0.37);
         let arm = front_shift(0.68, 0.72);
         assert!(belly > 0.012, "belly followed by {belly}");
@@ -955,19 +965,7 @@ mod tests {
         // followed, not filled in from the edges around it.
         let (mesh, set) = torso_cylinder(0.025);
         let bulge = |y: f64| 0.008 * (-((y - 0.70) / 0.05).powi(2) / 2.0).exp();
-        let targets: Vec<Option<DVec3>> = set
-            .controls
-            .iter()
-            .map(|c| {
-                let p = mesh.positions[c.vertex as usize];
-                let dz = if c.status == Status::Front {
-                    bulge(p.y)
-                } else {
-                    0.0
-                };
-                Some(p + DVec3::Z * dz)
-            })
-            .collect();
+        let targets = front_moved(&mesh, &set, bulge);
         let forearm = SideOccluder {
             a: glam::DVec2::new(0.60, 0.085),
             b: glam::DVec2::new(0.80, 0.085),
@@ -985,19 +983,10 @@ mod tests {
             &mut scratch,
             &mut out,
         );
-        let mut best = (f64::MIN, 0.0);
-        for (v, t) in out.iter().enumerate() {
-            let p = mesh.positions[v];
-            if let Some(t) = t.filter(|_| (0.68..=0.72).contains(&p.y) && p.x.abs() < 0.02) {
-                if p.z > best.0 {
-                    best = (p.z, t.z - p.z);
-                }
-            }
-        }
+        let moved = front_shift(&mesh, &out, 0.68, 0.72);
         assert!(
-            best.1 > 0.005,
-            "the bulge under the limb followed by {}",
-            best.1
+            moved > 0.005,
+            "the bulge under the limb followed by {moved}"
         );
     }
 
