@@ -5,10 +5,11 @@
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use fitstation::camera::StationCalibration;
+use fitstation::imgproc::Mask;
 use fitstation::imgproc::PointUndistorter;
 use fitstation::landmarks::phantom::{Phantom, PhantomParams, Renderer, SceneParams};
-use fitstation::landmarks::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult};
-use fitstation::segment::{BackgroundModel, Mask, SegmentOptions};
+use fitstation::segment::{BackgroundModel, SegmentOptions};
+use fitstation::silhouette::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult};
 use std::hint::black_box;
 
 fn station() -> StationCalibration {

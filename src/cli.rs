@@ -667,7 +667,7 @@ pub struct FitArgs {
     pub fit: FitCliOptions,
 }
 
-use crate::landmarks::cli::load_rgb;
+use crate::silhouette::cli::load_rgb;
 
 /// `fitstation fit` on two stills (with optional empty-scene images).
 pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {

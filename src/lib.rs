@@ -4,9 +4,11 @@
 //! girths. See `ARCHITECTURE.md` for the data flow and the module table.
 //!
 //! Stages, dependencies in one direction:
-//! `camera` (model, calibration files) -> `segment` -> `contour`/`landmarks` -> `deform`
-//! -> `fit` -> `measure`; `mesh`, `body` (template, shape library) underneath; `app`
-//! wires them together with capture and the screen.
+//! `camera` (model, calibration files) and `imgproc` (image containers such as `Mask`)
+//! -> `segment` -> `contour` -> `landmarks`, which `silhouette` runs on each frame pair
+//! (a frame walks down those stages and back up once) -> `deform` -> `fit` -> `measure`;
+//! `mesh`, `body` (template, shape library) underneath; `app` wires them together with
+//! capture and the screen.
 
 pub mod app;
 pub mod body;
@@ -27,5 +29,6 @@ pub mod person;
 pub mod pipeline;
 pub mod recording;
 pub mod segment;
+pub mod silhouette;
 pub mod station;
 pub mod synth;

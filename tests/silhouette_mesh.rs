@@ -8,11 +8,11 @@
 mod silhouette_common;
 
 use fitstation::camera::Camera;
+use fitstation::imgproc::Mask;
 use fitstation::landmarks::phantom::SceneParams;
 use fitstation::landmarks::LandmarkName;
 use fitstation::mesh::io::read_obj;
 use fitstation::mesh::TriMesh;
-use fitstation::segment::Mask;
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 use silhouette_common::*;
@@ -388,7 +388,7 @@ fn the_makehuman_body_is_segmented_and_its_landmarks_found() {
         );
     }
     if let Some(path) = std::env::var_os("SILHOUETTE_MESH_OVERLAY_OUT") {
-        fitstation::landmarks::cli::overlay(&front, &side, &res)
+        fitstation::silhouette::cli::overlay(&front, &side, &res)
             .save(path)
             .expect("save overlay");
     }

@@ -8,9 +8,10 @@
 mod silhouette_common;
 
 use fitstation::contour::trace_outer;
+use fitstation::imgproc::Mask;
 use fitstation::imgproc::{canny, to_gray, CannyScratch, PointUndistorter};
 use fitstation::landmarks::phantom::SceneParams;
-use fitstation::segment::{BackgroundModel, Mask, SegmentOptions};
+use fitstation::segment::{BackgroundModel, SegmentOptions};
 use glam::DVec2;
 use serde_json::json;
 use silhouette_common::*;

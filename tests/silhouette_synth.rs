@@ -15,12 +15,11 @@
 //! Skipped (SKIPPED line) when the body source is not on this machine.
 
 use fitstation::camera::View;
+use fitstation::imgproc::Mask;
 use fitstation::landmarks::graze::TemplateProfiles;
-use fitstation::landmarks::{
-    LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult,
-};
+use fitstation::landmarks::LandmarkName;
 use fitstation::recording::{FrameFormat, Recording};
-use fitstation::segment::Mask;
+use fitstation::silhouette::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult};
 use fitstation::synth::rng::SplitMix64;
 use fitstation::synth::scene::Scene;
 use fitstation::synth::{self, load_truth, render_recording, truth_dir, SynthConfig};

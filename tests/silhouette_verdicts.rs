@@ -4,11 +4,10 @@
 mod silhouette_common;
 
 use fitstation::camera::View;
+use fitstation::imgproc::Mask;
 use fitstation::landmarks::phantom::{Phantom, PhantomParams, SceneParams};
-use fitstation::landmarks::{
-    FrameEdge, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict,
-};
-use fitstation::segment::Mask;
+use fitstation::landmarks::{FrameEdge, Verdict};
+use fitstation::silhouette::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult};
 use glam::DVec3;
 use image::RgbImage;
 use silhouette_common::*;

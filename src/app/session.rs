@@ -22,9 +22,9 @@
 
 use super::flow::{FlowAction, FlowConfig, FlowInput, FlowState, KioskFlow};
 use crate::camera::StationCalibration;
-use crate::landmarks::{SilhouetteExecutor, SilhouetteOptions};
 use crate::pipeline::{FramePair, FrameProcessor, FrameSource, SourceError};
 use crate::recording::Recording;
+use crate::silhouette::{SilhouetteExecutor, SilhouetteOptions};
 use image::RgbImage;
 use std::path::Path;
 use std::sync::Arc;

@@ -16,7 +16,7 @@ pub mod query;
 
 pub use query::{ContourGrid, MaskSpans, NearestOnContour, SilhouetteTarget};
 
-use crate::segment::Mask;
+use crate::imgproc::Mask;
 use glam::DVec2;
 
 /// An ordered closed contour in pixels.

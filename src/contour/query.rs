@@ -7,8 +7,7 @@
 //! pixel.
 
 use super::Contour;
-use crate::imgproc::find_run_edge;
-use crate::segment::Mask;
+use crate::imgproc::{find_run_edge, Mask};
 use glam::DVec2;
 
 /// Foreground spans `[x0, x1)` per row of a mask.

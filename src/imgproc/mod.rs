@@ -1,6 +1,7 @@
 //! Low-level image processing for the silhouette stage: undistortion (a remap table per
 //! camera for display, point undistortion for the pipeline), binary morphology on
-//! `0/255` masks, run-length connected components with hole filling, and Canny edges.
+//! `0/255` masks ([`Mask`], the container the segmentation writes and the contour stage
+//! reads), run-length connected components with hole filling, and Canny edges.
 //!
 //! # Conventions
 //! - Pixels: (u, v) = (column, row), origin at the centre of the top-left pixel (as
@@ -10,11 +11,13 @@
 //!   do not allocate once those buffers have grown to the frame size.
 
 pub mod canny;
+pub mod mask;
 pub mod morph;
 pub mod remap;
 pub mod runs;
 
 pub use canny::{canny, CannyScratch};
+pub use mask::Mask;
 pub use morph::{dilate3x3, erode3x3, majority3x3};
 pub use remap::{PointUndistorter, RemapTable};
 pub use runs::{

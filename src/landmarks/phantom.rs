@@ -11,8 +11,7 @@
 //! section of the body by that plane: the ground truth below is computed on it.
 
 use crate::camera::Camera;
-use crate::imgproc::PointUndistorter;
-use crate::segment::Mask;
+use crate::imgproc::{Mask, PointUndistorter};
 use glam::{DVec2, DVec3};
 use image::RgbImage;
 

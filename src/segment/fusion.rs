@@ -442,7 +442,8 @@ impl BackgroundModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::segment::{Mask, SegmentOptions};
+    use crate::imgproc::Mask;
+    use crate::segment::SegmentOptions;
     use image::{Rgb, RgbImage};
 
     #[test]

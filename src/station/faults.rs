@@ -23,8 +23,8 @@
 
 use super::StationProcessor;
 use crate::camera::{StationCalibration, View};
-use crate::landmarks::SilhouetteExecutor;
 use crate::pipeline::{FitSnapshot, FramePair, Phase};
+use crate::silhouette::SilhouetteExecutor;
 use image::RgbImage;
 use std::sync::Arc;
 

@@ -20,9 +20,7 @@ use crate::camera::StationCalibration;
 use crate::fit::correspond::MaskRef;
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
 use crate::landmarks::graze::TemplateProfiles;
-use crate::landmarks::{
-    LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Verdict, ViewAnalysis,
-};
+use crate::landmarks::{LandmarkName, Verdict};
 use crate::measure::Measurements;
 use crate::mesh::TriMesh;
 use crate::pipeline::smooth::{SmoothedPoints, SmoothedValue};
@@ -30,6 +28,7 @@ use crate::pipeline::timing::FrameTimer;
 use crate::pipeline::{
     FitSnapshot, FramePair, FrameProcessor, MeasurementValue, Phase, ViewOverlay,
 };
+use crate::silhouette::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, ViewAnalysis};
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
 

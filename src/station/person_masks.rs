@@ -19,10 +19,11 @@
 //! Units: metres in the station frame, pixels in each camera's distorted image.
 
 use crate::camera::{Camera, StationCalibration, View};
-use crate::landmarks::{SilhouetteExecutor, SilhouetteResult, Verdict};
+use crate::landmarks::Verdict;
 use crate::person::{FrameRef, PersonModel, PersonOutput, Roi, SelfieSegmenter};
 use crate::segment::fusion::PersonPrior;
 use crate::segment::PixelBox;
+use crate::silhouette::{SilhouetteExecutor, SilhouetteResult};
 use glam::DVec3;
 
 /// Frames between two runs of the network while the silhouettes are accepted.

@@ -18,8 +18,9 @@
 
 use crate::camera::Camera;
 use crate::fit::sections::{SideOccluder, MAX_SIDE_OCCLUDERS};
-use crate::landmarks::{LandmarkName, SilhouetteResult};
+use crate::landmarks::LandmarkName;
 use crate::person::{kp, FrameRef, PersonModel, PersonOutput, PoseLandmarker, Roi};
+use crate::silhouette::SilhouetteResult;
 use glam::{DVec2, DVec3};
 
 /// Fitted frames between two runs of the pose network.

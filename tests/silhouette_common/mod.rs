@@ -3,9 +3,9 @@
 #![allow(dead_code)]
 
 use fitstation::camera::StationCalibration;
+use fitstation::imgproc::Mask;
 use fitstation::landmarks::phantom::{Phantom, PhantomParams, Renderer, SceneParams};
-use fitstation::landmarks::{SilhouetteExecutor, SilhouetteOptions};
-use fitstation::segment::Mask;
+use fitstation::silhouette::{SilhouetteExecutor, SilhouetteOptions};
 use image::RgbImage;
 use std::sync::OnceLock;
 

@@ -4,13 +4,12 @@
 //!
 //! Station points are printed in metres, pixels in each frame's distorted pixels.
 
-use super::graze::TemplateProfiles;
-use super::{
-    ContourPart, LandmarkName, SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, Status,
-    ViewAnalysis,
-};
+use super::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult, ViewAnalysis};
 use crate::camera::StationCalibration;
-use crate::segment::{self, Mask};
+use crate::imgproc::Mask;
+use crate::landmarks::graze::TemplateProfiles;
+use crate::landmarks::{ContourPart, LandmarkName, Status};
+use crate::segment;
 use anyhow::Context;
 use glam::DVec2;
 use image::{Rgb, RgbImage};
