@@ -20,7 +20,7 @@ enum Command {
     /// Fit one front and one side still; write avatar.obj and report.json.
     Fit(fitstation::cli::FitArgs),
     /// Landmarks, joints and frame verdicts from one front and one side image.
-    Landmarks(fitstation::landmarks::cli::LandmarksArgs),
+    Landmarks(fitstation::silhouette::cli::LandmarksArgs),
     /// Measure a body mesh: stature and tape girths (ISO 8559-1).
     Measure(fitstation::measure::MeasureArgs),
     /// Body templates and the shape library (import, prepare, bodies).
@@ -104,7 +104,7 @@ fn run() -> anyhow::Result<()> {
     match cli.command {
         Command::Replay(args) => fitstation::cli::run_replay(&args)?,
         Command::Fit(args) => fitstation::cli::run_fit(&args)?,
-        Command::Landmarks(args) => fitstation::landmarks::cli::run(args)?,
+        Command::Landmarks(args) => fitstation::silhouette::cli::run(args)?,
         Command::Measure(args) => fitstation::measure::run(args)?,
         Command::Templates(args) => fitstation::body::run(args)?,
         Command::Synth(args) => fitstation::synth::run(args)?,

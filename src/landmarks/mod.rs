@@ -33,12 +33,6 @@ pub mod lift;
 pub mod phantom;
 pub mod zones;
 
-/// The `landmarks` command moved to [`crate::silhouette::cli`] (it runs the silhouette
-/// stage); this path stays only because `src/main.rs` names it.
-pub mod cli {
-    pub use crate::silhouette::cli::*;
-}
-
 pub use analysis::{analyse_front, analyse_side, FrontFeatures, SideFeatures};
 
 use crate::camera::View;
