@@ -27,5 +27,6 @@ pub mod person;
 pub mod pipeline;
 pub mod recording;
 pub mod segment;
+pub mod soak;
 pub mod station;
 pub mod synth;
