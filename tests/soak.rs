@@ -11,13 +11,16 @@ use std::process::Command;
 const CI_MINUTES: &str = "1.5";
 /// Seconds between samples: enough points for a slope in so short a run.
 const CI_SAMPLE_SECONDS: &str = "2";
-/// The memory bound of the CI run (MB per hour). Over the ~70 s after warm-up, the
-/// allocator taking or returning a single arena or the person model's caches settling
-/// moves resident memory by a megabyte or two in one step, which alone reads as 50 to
-/// 100 MB per hour: a short run cannot tell 1 MB per hour from noise. This bound still
-/// catches a real leak of per-frame data (two camera frames kept per pair is gigabytes
-/// per hour) or of a per-visit avatar; the 1 MB per hour bound is the hour-long run's.
-const CI_MAX_RSS_SLOPE_MB_PER_H: &str = "300";
+/// The memory bound of the CI run (MB per hour). A run this short cannot tell 1 MB per
+/// hour from noise: the station's start-up ramp (about 120 MB to 235 MB, the person
+/// models and the first fits' buffers) is still ending a few megabytes after the 18 s
+/// warm-up when the machine is busy, and 4 MB over the remaining ~70 s reads as about
+/// 200 MB per hour (measured: 177 MB per hour on a run whose 20-minute sibling was flat
+/// at 235 MB from its first minute on). The bound still catches real leaks: a frame pair
+/// kept per pair (two 1280x720 frames, 5.5 MB, at over ten pairs a second) is hundreds
+/// of GB per hour, a fitted avatar kept per visit (about 0.6 MB, some 35 visits a minute)
+/// over 1 GB per hour. The 1 MB per hour bound is the hour-long run's.
+const CI_MAX_RSS_SLOPE_MB_PER_H: &str = "600";
 
 fn text(b: &[u8]) -> String {
     String::from_utf8_lossy(b).into_owned()
