@@ -178,7 +178,10 @@ impl SoakPlan {
     /// Checks the arguments and derives the timing window.
     fn from_args(args: &SoakArgs) -> anyhow::Result<SoakPlan> {
         if !(args.minutes.is_finite() && args.minutes > 0.0) {
-            bail!("--minutes {} is not a duration (give minutes > 0)", args.minutes);
+            bail!(
+                "--minutes {} is not a duration (give minutes > 0)",
+                args.minutes
+            );
         }
         if !(args.sample_seconds.is_finite() && args.sample_seconds > 0.0) {
             bail!(
@@ -187,7 +190,10 @@ impl SoakPlan {
             );
         }
         if !(args.max_rss_slope.is_finite() && args.max_rss_slope >= 0.0) {
-            bail!("--max-rss-slope {} is not a bound (MB per hour >= 0)", args.max_rss_slope);
+            bail!(
+                "--max-rss-slope {} is not a bound (MB per hour >= 0)",
+                args.max_rss_slope
+            );
         }
         let run_s = args.minutes * 60.0;
         Ok(SoakPlan {
@@ -397,7 +403,11 @@ pub fn least_squares_slope(points: &[(f64, f64)]) -> Option<f64> {
 }
 
 /// First, after-warm-up, last and largest of one count.
-fn count_summary(samples: &[ProcSample], warm: &[ProcSample], f: fn(&ProcSample) -> u64) -> CountSummary {
+fn count_summary(
+    samples: &[ProcSample],
+    warm: &[ProcSample],
+    f: fn(&ProcSample) -> u64,
+) -> CountSummary {
     CountSummary {
         first: samples.first().map_or(0, f),
         after_warm_up: warm.first().map_or(0, f),
@@ -472,7 +482,10 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
         samples: samples.len(),
         rss_mb_first: mb(samples.first()),
         rss_mb_last: mb(samples.last()),
-        rss_mb_max: samples.iter().map(|s| s.rss_kb as f64 / KB).fold(0.0, f64::max),
+        rss_mb_max: samples
+            .iter()
+            .map(|s| s.rss_kb as f64 / KB)
+            .fold(0.0, f64::max),
         rss_slope_mb_per_hour: slope,
         rss_slope_samples: points.len(),
         max_rss_slope_mb_per_hour: args.max_rss_slope,
@@ -494,7 +507,10 @@ fn open_station(recording: &Path) -> anyhow::Result<(RecordingSource, StationPro
         eprintln!("warning: {w}");
     }
     if source.recording().is_empty() {
-        bail!("{}: the recording has no frame pairs to loop", recording.display());
+        bail!(
+            "{}: the recording has no frame pairs to loop",
+            recording.display()
+        );
     }
     source.looping = true;
     let calib = source.recording().calibration().clone();
@@ -514,7 +530,11 @@ fn visit_has_result(summary: &crate::cli::RunSummary) -> bool {
 }
 
 /// Runs whole visits (one pass of the recording each) until the planned time is over.
-fn run_visits(m: &mut MeteredSource<'_>, proc_: &mut StationProcessor, pass_len: usize) -> anyhow::Result<()> {
+fn run_visits(
+    m: &mut MeteredSource<'_>,
+    proc_: &mut StationProcessor,
+    pass_len: usize,
+) -> anyhow::Result<()> {
     while m.elapsed_s() < m.plan.run_s {
         let summary = run_offline(m, proc_, Some(pass_len), false);
         m.end_visit(visit_has_result(&summary));
@@ -524,7 +544,9 @@ fn run_visits(m: &mut MeteredSource<'_>, proc_: &mut StationProcessor, pass_len:
             bail!("sampling the process failed: {e}");
         }
         if m.visits == 1 && summary.report["frames"]["with_subject"].as_u64() == Some(0) {
-            eprintln!("warning: the first pass of the recording showed nobody: every visit will be lost");
+            eprintln!(
+                "warning: the first pass of the recording showed nobody: every visit will be lost"
+            );
         }
     }
     Ok(())
@@ -533,7 +555,13 @@ fn run_visits(m: &mut MeteredSource<'_>, proc_: &mut StationProcessor, pass_len:
 /// Prints the summary as a table.
 fn print_summary(s: &SoakSummary) {
     let opt = |v: Option<f64>, unit: &str| v.map_or("-".to_string(), |v| format!("{v:.2}{unit}"));
-    println!("soak of {}: {:.1} min, {} frame pairs, {} samples", s.recording, s.duration_s / 60.0, s.frame_pairs, s.samples);
+    println!(
+        "soak of {}: {:.1} min, {} frame pairs, {} samples",
+        s.recording,
+        s.duration_s / 60.0,
+        s.frame_pairs,
+        s.samples
+    );
     println!(
         "resident memory: {:.1} MB first, {:.1} MB last, {:.1} MB max; slope after warm-up {} MB/hour over {} samples (bound {})",
         s.rss_mb_first, s.rss_mb_last, s.rss_mb_max, opt(s.rss_slope_mb_per_hour, ""), s.rss_slope_samples, s.max_rss_slope_mb_per_hour
@@ -550,7 +578,10 @@ fn print_summary(s: &SoakSummary) {
         opt(f.first_p95_ms, " ms"), f.window_s, f.first_frames, opt(f.last_p95_ms, " ms"), f.last_frames,
         opt(f.p95_change_percent, " %")
     );
-    println!("visits: {}, results: {}, lost: {}", s.visits, s.results, s.lost_results);
+    println!(
+        "visits: {}, results: {}, lost: {}",
+        s.visits, s.results, s.lost_results
+    );
     if s.passed {
         println!("passed");
     } else {

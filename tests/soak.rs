@@ -32,7 +32,12 @@ fn soak_keeps_files_threads_and_results() {
     let o = Command::new(env!("CARGO_BIN_EXE_fitstation"))
         .arg("soak")
         .arg(&rec)
-        .args(["--minutes", CI_MINUTES, "--sample-seconds", CI_SAMPLE_SECONDS])
+        .args([
+            "--minutes",
+            CI_MINUTES,
+            "--sample-seconds",
+            CI_SAMPLE_SECONDS,
+        ])
         .args(["--max-rss-slope", CI_MAX_RSS_SLOPE_MB_PER_H, "--json"])
         .env_remove("RUST_BACKTRACE")
         .output()
@@ -42,7 +47,11 @@ fn soak_keeps_files_threads_and_results() {
     let s: serde_json::Value = serde_json::from_str(&out)
         .unwrap_or_else(|e| panic!("the summary is not JSON ({e}):\n{out}\n{err}"));
     eprintln!("{out}");
-    assert!(o.status.success(), "soak failed: {:?}\n{err}", s["failures"]);
+    assert!(
+        o.status.success(),
+        "soak failed: {:?}\n{err}",
+        s["failures"]
+    );
     assert_eq!(s["passed"], true, "{out}");
     // Shoppers came and went, and each got a result.
     let visits = s["visits"].as_u64().unwrap_or(0);
