@@ -30,5 +30,6 @@ pub mod pipeline;
 pub mod recording;
 pub mod segment;
 pub mod silhouette;
+pub mod soak;
 pub mod station;
 pub mod synth;

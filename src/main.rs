@@ -44,6 +44,8 @@ enum Command {
     DemoUi(fitstation::app::DemoUiArgs),
     /// The station screen on two live cameras (build with --features camera).
     Live(fitstation::app::LiveArgs),
+    /// Loop a recording for a while (shoppers coming and going); check memory, threads, files, results.
+    Soak(fitstation::soak::SoakArgs),
 }
 
 #[derive(Subcommand)]
@@ -117,6 +119,7 @@ fn run() -> anyhow::Result<()> {
         Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,
         Command::DemoUi(args) => fitstation::app::run_demo_cli(args)?,
         Command::Live(args) => fitstation::app::run_live_cli(args)?,
+        Command::Soak(args) => fitstation::soak::run(&args)?,
     }
     Ok(())
 }
