@@ -11,21 +11,13 @@ use std::path::PathBuf;
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod xvfb_common;
+use xvfb_common::have;
+
 /// Screen frames before the screenshot.
 const FRAMES: u64 = 90;
 /// Longest the window may take (software rendering on a loaded 2-core machine).
 const TIMEOUT: Duration = Duration::from_secs(600);
-
-/// True when `tool` is on the PATH.
-fn have(tool: &str) -> bool {
-    Command::new("sh")
-        .arg("-c")
-        .arg(format!("command -v {tool}"))
-        .stdout(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
-}
 
 /// The warning orange of the top bar (255, 140, 0), anti-aliased on a dark panel.
 fn is_orange(p: &image::Rgb<u8>) -> bool {

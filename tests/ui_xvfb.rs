@@ -13,20 +13,13 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
 
+mod xvfb_common;
+use xvfb_common::have;
+
 /// Screen frames before the screenshot.
 const FRAMES: u64 = 90;
 /// Longest the window may take (software rendering on a loaded 2-core machine).
 const TIMEOUT: Duration = Duration::from_secs(600);
-
-fn have(tool: &str) -> bool {
-    Command::new("sh")
-        .arg("-c")
-        .arg(format!("command -v {tool}"))
-        .stdout(Stdio::null())
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false)
-}
 
 /// Pixels of `img` inside a layout rect `[x0, y0, x1, y1]` (shrunk by `inset` pixels).
 fn region(img: &image::RgbImage, r: &serde_json::Value, inset: f64) -> Vec<[u8; 3]> {

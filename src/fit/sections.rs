@@ -898,6 +898,28 @@ mod tests {
             .collect()
     }
 
+    /// The section plan's targets with one known side-view limb: the plan, its scratch
+    /// (for the evidence) and the targets.
+    fn targets_with_limb(
+        mesh: &crate::mesh::TriMesh,
+        set: &ControlSet,
+        targets: &[Option<DVec3>],
+        limb: SideOccluder,
+    ) -> (SectionPlan, SectionScratch, Vec<Option<DVec3>>) {
+        let plan = SectionPlan::new(set);
+        let mut scratch = SectionScratch::default();
+        let mut out = Vec::new();
+        plan.targets(
+            &mesh.positions,
+            set,
+            targets,
+            &[Some(limb)],
+            &mut scratch,
+            &mut out,
+        );
+        (plan, scratch, out)
+    }
+
     /// How far the front-most vertex between heights `y0` and `y1` moved (its target).
     fn front_shift(mesh: &crate::mesh::TriMesh, out: &[Option<DVec3>], y0: f64, y1: f64) -> f64 {
         let mut best = (f64::MIN, 0.0);
@@ -934,17 +956,7 @@ mod tests {
             radius: 0.02,
         };
         assert!(forearm.covers(0.7, 0.16, 0.0) && !forearm.covers(0.7, 0.10, 0.015));
-        let plan = SectionPlan::new(&set);
-        let mut scratch = SectionScratch::default();
-        let mut out = Vec::new();
-        plan.targets(
-            &mesh.positions,
-            &set,
-            &targets,
-            &[Some(forearm)],
-            &mut scratch,
-            &mut out,
-        );
+        let (plan, scratch, out) = targets_with_limb(&mesh, &set, &targets, forearm);
         let front_shift = |y0: f64, y1: f64| front_shift(&mesh, &out, y0, y1);
         let belly = front_shift(0.33, 0.37);
         let arm = front_shift(0.68, 0.72);
@@ -972,17 +984,7 @@ mod tests {
             radius: 0.02,
         };
         assert!(forearm.covers(0.70, 0.108, OCCLUDER_MARGIN_M));
-        let plan = SectionPlan::new(&set);
-        let mut scratch = SectionScratch::default();
-        let mut out = Vec::new();
-        plan.targets(
-            &mesh.positions,
-            &set,
-            &targets,
-            &[Some(forearm)],
-            &mut scratch,
-            &mut out,
-        );
+        let (_, _, out) = targets_with_limb(&mesh, &set, &targets, forearm);
         let moved = front_shift(&mesh, &out, 0.68, 0.72);
         assert!(
             moved > 0.005,
