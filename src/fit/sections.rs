@@ -592,20 +592,21 @@ impl SectionPlan {
                 &scratch.trend_d,
                 chain.axis.outward_tolerance(),
             );
-            let loose = if known {
+            // Only with known limbs: the gross-outlier test (no copy of `tight` otherwise).
+            let loose = known.then(|| {
                 outward_inliers(
                     &scratch.trend_y,
                     &scratch.trend_d,
                     KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M,
                 )
-            } else {
-                tight.clone()
-            };
+            });
             let mut k = 0;
             for e in 0..constraints.len() {
                 if constraints[e][side].is_some() {
                     let on_trend = tight.get(k).copied().unwrap_or(true);
-                    let plausible = loose.get(k).copied().unwrap_or(true);
+                    let plausible = loose
+                        .as_ref()
+                        .map_or(on_trend, |l| l.get(k).copied().unwrap_or(true));
                     let keep =
                         plausible && (on_trend || (known && !in_limb(e, side, &constraints[e])));
                     if !keep {
