@@ -48,6 +48,7 @@
 
 pub mod ansur;
 pub mod ansur_body;
+pub mod passerby;
 pub mod raster;
 pub mod rng;
 pub mod scene;
@@ -159,6 +160,9 @@ pub struct SynthConfig {
     /// Clothing as drawn from the seed, or in the backdrop's own colour
     /// ([`scene::Clothing::Camouflage`]).
     pub clothing: scene::Clothing,
+    /// A second person walks behind the subject while it stands on the mark
+    /// ([`passerby`]).
+    pub passer_by: bool,
 }
 
 impl SynthConfig {
@@ -174,6 +178,7 @@ impl SynthConfig {
             format: FrameFormat::Mp4,
             truth: true,
             clothing: scene::Clothing::Drawn,
+            passer_by: false,
         }
     }
 }
@@ -392,6 +397,10 @@ pub struct Truth {
     /// posed, turned body.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub stance: Option<stance::Stance>,
+    /// The second person walking behind the subject (`--passer-by`): not in the masks,
+    /// the mesh or the measurements.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub passer_by: Option<passerby::PasserByPath>,
 }
 
 #[derive(Debug, Clone, Serialize, serde::Deserialize)]
@@ -545,16 +554,32 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
             }
         })
         .collect();
+    let mut passer_by = if cfg.passer_by {
+        Some(passerby::PasserBy::new(
+            cfg.seed,
+            &scene,
+            cfg.empty_frames,
+            cfg.subject_frames,
+            [&calib.front, &calib.side],
+        )?)
+    } else {
+        None
+    };
     let setup_ms = t0.elapsed().as_secs_f64() * 1e3;
 
     let meta = RecordingMeta {
         fps: cfg.fps,
         stature_m: None,
         notes: Some(format!(
-            "synthetic recording, seed {}{}; ground truth in the sibling .truth folder",
+            "synthetic recording, seed {}{}{}; ground truth in the sibling .truth folder",
             cfg.seed,
             if cfg.clothing == scene::Clothing::Camouflage {
                 ", clothing in the backdrop's colour (camouflage)"
+            } else {
+                ""
+            },
+            if cfg.passer_by {
+                ", a second person walks behind the subject"
             } else {
                 ""
             }
@@ -623,6 +648,15 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
                     &mut vr.radiance,
                 );
             }
+            if let Some(pb) = passer_by.as_mut() {
+                pb.draw(
+                    k,
+                    vr.view as usize,
+                    &vr.camera,
+                    &vr.raster,
+                    &mut vr.radiance,
+                );
+            }
             let mut nrng =
                 SplitMix64::stream(cfg.seed, ((k as u64) << 8) | (0x10 + vr.view as u64));
             vr.film.develop(
@@ -687,6 +721,7 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
             per_frame,
             ansur: cfg.subject.ansur.clone(),
             stance: cfg.subject.stance.clone(),
+            passer_by: passer_by.as_ref().map(|p| p.path.clone()),
         };
         let p = tdir.join("truth.json");
         let text =
@@ -858,6 +893,7 @@ pub fn run(args: SynthArgs) -> anyhow::Result<()> {
         format: args.format,
         truth: !args.no_truth,
         clothing: scene::Clothing::Drawn,
+        passer_by: false,
     };
     let s = render_recording(&cfg, &args.out)?;
     print_summary(&s);
@@ -928,6 +964,10 @@ pub struct SynthSetArgs {
     /// backdrop model cannot see); the other draws of each seed are the plain set's.
     #[arg(long)]
     pub camouflage: bool,
+    /// A second person walks behind each subject while it stands on the mark (behind it
+    /// in the front view, beside it in the side view); not part of the truth.
+    #[arg(long)]
+    pub passer_by: bool,
 }
 
 /// Where the bodies of an evaluation set come from.
@@ -1004,6 +1044,7 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
         if args.camouflage {
             cfg.clothing = scene::Clothing::Camouflage;
         }
+        cfg.passer_by = args.passer_by;
         cfg.subject.pose = subject::LimbPose {
             arms_deg: args.arms_deg,
             legs_deg: args.legs_deg,

@@ -156,6 +156,17 @@ impl Look {
         self.shirt = camouflage_colour(base, rng);
         self.leggings = camouflage_colour(base, rng);
     }
+
+    /// Another person's clothes, skin and hair, drawn from `rng` (a passer-by's look in
+    /// the subject's room).
+    pub fn redress(&mut self, rng: &mut SplitMix64) {
+        self.shirt = pick(rng, &SHIRTS);
+        self.leggings = pick(rng, &LEGGINGS);
+        self.skin = pick(rng, &SKINS);
+        self.hair = pick(rng, &HAIRS);
+        self.shoes = pick(rng, &SHOES);
+        self.pattern_seed = rng.next_u64();
+    }
 }
 
 /// A colour `CAMOUFLAGE_MIN_LEVELS..CAMOUFLAGE_MAX_LEVELS` levels from `base` (8-bit
