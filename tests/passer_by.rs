@@ -97,3 +97,70 @@ fn the_passer_by_is_in_the_pictures_and_not_in_the_truth() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// What the station reported for a recording: its report.json.
+fn replay(rec: &Path) -> serde_json::Value {
+    use fitstation::cli::{run_offline, RecordingSource};
+    use fitstation::station::{default_library, StationOptions, StationProcessor};
+    let mut src = RecordingSource::open(rec).expect("open the recording");
+    let calib = src.recording().calibration().clone();
+    let library = default_library().expect("shape library");
+    let mut station =
+        StationProcessor::new(calib, library, StationOptions::default()).expect("station");
+    run_offline(&mut src, &mut station, None, false).report
+}
+
+/// Girths may differ by this much between the subject replayed alone and with the
+/// passer-by, mm: the passer-by's frames are not measured, so fewer frames settle the
+/// values (dev subjects 20500-20505 moved by 0-10 mm, one waist by 25).
+const MAX_GIRTH_CHANGE_MM: f64 = 12.0;
+
+#[test]
+fn a_person_walking_behind_neither_stops_the_fit_nor_is_measured() {
+    let dir = tmp("station");
+    let (plain, walked) = (dir.join("plain"), dir.join("walked"));
+    render_recording(&config(0, false, 12), &plain).expect("render");
+    render_recording(&config(0, true, 12), &walked).expect("render");
+    let alone = replay(&plain);
+    let with = replay(&walked);
+    let messages = with["messages"].to_string();
+    eprintln!(
+        "frames alone {} / with the passer-by {}",
+        alone["frames"], with["frames"]
+    );
+    eprintln!("messages: {messages}");
+    // Fitted on the still frames before and after the walk ...
+    let fitted = with["frames"]["fitted"].as_u64().unwrap_or(0);
+    assert!(fitted >= 4, "only {fitted} frames fitted");
+    // ... not on those where the passer-by merged with the outline ...
+    assert!(
+        fitted < alone["frames"]["fitted"].as_u64().unwrap_or(0),
+        "every frame was measured, the passer-by's too"
+    );
+    assert!(
+        messages.contains("waiting for a still picture"),
+        "{messages}"
+    );
+    // ... and never taken for a second shopper in the booth.
+    assert!(!messages.contains("More than one person"), "{messages}");
+    for key in [
+        "chest_girth",
+        "waist_girth",
+        "hip_girth",
+        "thigh_girth_left",
+        "thigh_girth_right",
+    ] {
+        let a = alone["measurements_mm"][key]
+            .as_f64()
+            .expect("measured alone");
+        let b = with["measurements_mm"][key]
+            .as_f64()
+            .expect("measured with the passer-by");
+        eprintln!("{key}: alone {a:.1}, with the passer-by {b:.1} mm");
+        assert!(
+            (a - b).abs() <= MAX_GIRTH_CHANGE_MM,
+            "{key}: {a:.1} mm alone, {b:.1} mm with someone walking behind"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -7,9 +7,13 @@ use super::{OPEN_HOLE_MIN_CELLS, WEAK};
 use crate::imgproc::{self, Mask};
 
 impl BackgroundModel {
-    /// Cleans the coarse labels with a 3x3 majority filter and returns the largest
-    /// 8-connected component when it is person-sized (`stats` gets the count of large
-    /// components and the sizes of the largest two).
+    /// Cleans the coarse labels with a 3x3 majority filter and returns the person's
+    /// 8-connected component when it is person-sized: the largest, or with a standing
+    /// volume set ([`Self::set_standing_box`]) the one with most cells inside it (a
+    /// passer-by behind the shopper may be larger in the side view, which it nears).
+    /// `stats` gets the count of large components, the person's size, the size of the
+    /// largest other one that stands in the volume (a second person in the booth) and
+    /// the number of those outside it (bystanders).
     pub(super) fn largest_component(&mut self, stats: &mut SegmentStats) -> Option<usize> {
         let (_, _, cw, ch) = self.grid();
         let nc = (cw * ch) as f32;
@@ -17,17 +21,31 @@ impl BackgroundModel {
         self.runs
             .compute(&self.coarse_clean, cw as u32, ch as u32, true, true);
         let cell = (COARSE * COARSE) as u64;
-        let min_area = (self.opts.min_person_fraction * nc) as u64;
-        stats.large_components = self
-            .runs
-            .components
-            .iter()
-            .filter(|c| c.area >= min_area.max(1))
-            .count() as u32;
-        let (first, second) = self.runs.two_largest();
-        stats.second_px = second.map_or(0, |c| self.runs.components[c].area * cell);
-        let body = first.filter(|&c| self.runs.components[c].area >= min_area.max(1))?;
-        stats.largest_px = self.runs.components[body].area * cell;
+        let min_area = ((self.opts.min_person_fraction * nc) as u64).max(1);
+        let comps = &self.runs.components;
+        stats.large_components = comps.iter().filter(|c| c.area >= min_area).count() as u32;
+        let Some(volume) = self.standing_cells else {
+            let (first, second) = self.runs.two_largest();
+            stats.second_px = second.map_or(0, |c| comps[c].area * cell);
+            let body = first.filter(|&c| comps[c].area >= min_area)?;
+            stats.largest_px = comps[body].area * cell;
+            return Some(body);
+        };
+        // The large component with most cells in the volume (ties: the larger).
+        let inside = |c: usize| cells_in_box(&self.runs, c, volume);
+        let body = (0..comps.len())
+            .filter(|&c| comps[c].area >= min_area)
+            .max_by_key(|&c| (inside(c), comps[c].area))?;
+        stats.largest_px = comps[body].area * cell;
+        stats.second_px = 0;
+        stats.bystanders = 0;
+        for c in (0..comps.len()).filter(|&c| c != body && comps[c].area >= min_area) {
+            if inside(c) as f64 >= IN_BOOTH_SHARE * comps[c].area as f64 {
+                stats.second_px = stats.second_px.max(comps[c].area * cell);
+            } else {
+                stats.bystanders += 1;
+            }
+        }
         Some(body)
     }
 
@@ -91,4 +109,25 @@ pub(super) fn border_touch(mask: &Mask) -> BorderTouch {
         left: (0..h).any(|y| mask.data[y * w] != 0),
         right: (0..h).any(|y| mask.data[y * w + w - 1] != 0),
     }
+}
+
+/// A large component with at least this share of its cells inside the standing volume
+/// over the mark stands in the booth (a second shopper), not behind it.
+const IN_BOOTH_SHARE: f64 = 0.5;
+
+/// Cells of component `comp` of `runs` inside `b` (cells, max exclusive).
+fn cells_in_box(runs: &imgproc::RunComponents, comp: usize, b: PixelBox) -> u64 {
+    let mut n = 0u64;
+    let rows = b.min_y as usize..(b.max_y as usize).min(runs.height as usize);
+    for y in rows {
+        let (r0, r1) = (runs.row_start[y], runs.row_start[y + 1]);
+        for (run, &label) in runs.runs[r0..r1].iter().zip(&runs.label[r0..r1]) {
+            if label as usize != comp {
+                continue;
+            }
+            let (x0, x1) = (run.x0.max(b.min_x), run.x1.min(b.max_x));
+            n += x1.saturating_sub(x0) as u64;
+        }
+    }
+    n
 }

@@ -70,7 +70,7 @@ mod zone;
 #[cfg(test)]
 use classify::{bridge_columns, gather_coarse_row};
 pub use still::{backdrop_from_border, key_still};
-pub use zone::floor_shadow_zone;
+pub use zone::{floor_shadow_zone, standing_volume_box};
 
 use crate::imgproc::{self, Mask, RunComponents};
 use image::RgbImage;
@@ -275,6 +275,10 @@ pub struct SegmentStats {
     /// Area of the largest and second largest component, in full-resolution pixels.
     pub largest_px: u64,
     pub second_px: u64,
+    /// Large components other than the person's that stand outside the standing volume
+    /// over the mark (people walking by behind the shopper; see
+    /// [`BackgroundModel::set_standing_box`]); 0 without a standing volume.
+    pub bystanders: u32,
     /// Box of the person in full-resolution pixels.
     pub person_box: Option<PixelBox>,
     pub touches: BorderTouch,
@@ -407,6 +411,9 @@ pub struct BackgroundModel {
     band_out: Vec<u8>,
     /// The learned person prior ([`fusion`]), when the station gave one.
     prior: Option<fusion::PersonPrior>,
+    /// The image of the standing volume over the mark, in coarse cells (see
+    /// [`Self::set_standing_box`]).
+    standing_cells: Option<PixelBox>,
     fusion: fusion::FusionRule,
     fuse_scratch: fusion::FuseScratch,
 }
@@ -527,6 +534,7 @@ impl BackgroundModel {
             column_top: Vec::new(),
             column_anchored: Vec::new(),
             zone_everywhere: true,
+            standing_cells: None,
             tmp: Vec::new(),
             eroded: Vec::new(),
             dilated: Vec::new(),

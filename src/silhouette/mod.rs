@@ -195,6 +195,8 @@ impl SilhouetteExecutor {
                 // Unreachable (the zone is made at the camera's size); the whole frame
                 // stays zone, the model's default.
             }
+            // The person is whoever stands over the mark; others walk by behind.
+            model.set_standing_box(segment::standing_volume_box(cam, i.width, i.height));
             ViewState {
                 model,
                 undistort: PointUndistorter::new(i),
