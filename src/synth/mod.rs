@@ -555,11 +555,13 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
         })
         .collect();
     let mut passer_by = if cfg.passer_by {
+        // Through the middle half of the subject's frames: still frames before and after.
+        let (first, frames) = passerby::walk_frames(cfg.empty_frames, cfg.subject_frames);
         Some(passerby::PasserBy::new(
             cfg.seed,
             &scene,
-            cfg.empty_frames,
-            cfg.subject_frames,
+            first,
+            frames,
             [&calib.front, &calib.side],
         )?)
     } else {

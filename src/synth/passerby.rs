@@ -1,7 +1,7 @@
 //! A second person walking behind the subject (issue 20, item 6): `synth-set
 //! --passer-by`. A body of its own (the library's, drawn from the seed) in clothes of its
-//! own crosses the room sideways between the subject and the front backdrop while the
-//! subject stands on the mark: behind the subject in the front view, beside the subject
+//! own crosses the room sideways between the subject and the front backdrop during the
+//! middle half of the subject's frames ([`walk_frames`]): behind the subject in the front view, beside the subject
 //! in the side view. It is drawn with a depth test against the subject, so whichever is
 //! nearer a camera hides the other; it is not in the truth (masks, mesh, measurements are
 //! the subject's alone), and its path is written to truth.json.
@@ -26,6 +26,14 @@ const MIN_BEHIND_M: f64 = 0.55;
 const BACKDROP_CLEARANCE_M: f64 = 0.3;
 /// Where the walk starts on the side camera's side, metres of x.
 const START_X_M: f64 = 1.0;
+
+/// The frames of the walk (first, count) among a recording's `subject_frames` after
+/// `empty_frames`: the middle half, so that the subject is seen still before the
+/// passer-by comes and after it has gone.
+pub fn walk_frames(empty_frames: usize, subject_frames: usize) -> (usize, usize) {
+    let first = empty_frames + subject_frames / 4;
+    (first, (subject_frames / 2).max(1))
+}
 
 /// The passer-by's path as truth.json records it: a straight walk at constant speed
 /// along x, from `from_x` to `to_x` at depth `z`, over frames `first_frame..=last_frame`.
