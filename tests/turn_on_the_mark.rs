@@ -1,0 +1,103 @@
+//! Issue 19, item 4: a small turn of the shopper on the mark must not move any girth by
+//! more than a few millimetres. The same synthetic subject (same body, clothing, cameras,
+//! light, sway) is rendered standing square and turned on the mark, both recordings are
+//! replayed through the station, and the reported girths are compared with each other
+//! (not with the truth: the turn alone must not move them).
+//!
+//! Girths of a horizontal section do not depend on a yaw (the spec's convex hulls), so any
+//! change comes from the station: silhouettes seen at another angle, correspondences,
+//! the level search.
+
+use fitstation::cli::{run_offline, RecordingSource};
+use fitstation::recording::FrameFormat;
+use fitstation::station::{default_library, StationOptions, StationProcessor};
+use fitstation::synth::stance::Stance;
+use fitstation::synth::{render_recording, set_member};
+use std::path::{Path, PathBuf};
+
+/// A dev-range library subject (seeds 20000+ are the development range; never a
+/// judgement seed).
+const FIRST_SEED: u64 = 20400;
+const MEMBER: usize = 3;
+const SET_COUNT: usize = 12;
+const SUBJECT_FRAMES: usize = 6;
+/// The turn, degrees: issue 19's varied stances turn by up to 4.
+const TURN_DEG: f64 = 4.0;
+/// "A few millimetres" (issue 19, item 4), per girth.
+const MAX_CHANGE_MM: f64 = 6.0;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fitstation-turn-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+/// Renders the subject turned by `yaw_deg` (arms, elbows and legs at rest) into `dir`.
+fn render(dir: &Path, yaw_deg: f64) -> PathBuf {
+    let rec = dir.join(format!("yaw{yaw_deg}"));
+    let mut cfg = set_member(FIRST_SEED, MEMBER, SET_COUNT);
+    cfg.subject.stance = Some(Stance {
+        arm_abduction_deg: [0.0, 0.0],
+        elbow_flexion_deg: [0.0, 0.0],
+        leg_abduction_deg: 0.0,
+        yaw_deg,
+    });
+    cfg.empty_frames = 10;
+    cfg.subject_frames = SUBJECT_FRAMES;
+    cfg.format = FrameFormat::Png;
+    render_recording(&cfg, &rec).expect("render");
+    rec
+}
+
+/// The station's reported girths (mm) for a recording.
+fn girths(rec: &Path) -> serde_json::Map<String, serde_json::Value> {
+    let mut src = RecordingSource::open(rec).expect("open the recording");
+    let calib = src.recording().calibration().clone();
+    let library = default_library().expect("shape library");
+    let mut station =
+        StationProcessor::new(calib, library, StationOptions::default()).expect("station");
+    let summary = run_offline(&mut src, &mut station, None, false);
+    summary.report["measurements_mm"]
+        .as_object()
+        .cloned()
+        .expect("the subject is fitted and measured")
+}
+
+/// Fails today (measured 2026-11-26: chest +23.7, waist +8.9, hip +1.4, thighs +14.4 /
+/// +13.1 mm for a 4 degree turn): the fit has no yaw, so a turned trunk's sections are
+/// fitted square to the cameras and their extents, wider than the section's own, make
+/// the girths larger. Run with `cargo test --release --test turn_on_the_mark --
+/// --ignored`.
+#[test]
+#[ignore = "issue 19 item 4 not met yet: a 4 degree turn moves the chest by +24 mm (the fit has no yaw)"]
+fn a_small_turn_on_the_mark_moves_no_girth_more_than_a_few_millimetres() {
+    let dir = tmp("girths");
+    let square = girths(&render(&dir, 0.0));
+    let turned = girths(&render(&dir, TURN_DEG));
+    let mut worst = (String::new(), 0.0f64);
+    for key in [
+        "chest_girth",
+        "waist_girth",
+        "hip_girth",
+        "thigh_girth_left",
+        "thigh_girth_right",
+    ] {
+        let a = square[key].as_f64().expect("girth");
+        let b = turned[key].as_f64().expect("girth");
+        eprintln!(
+            "{key}: square {a:.1} mm, turned {TURN_DEG} deg {b:.1} mm, change {:+.1}",
+            b - a
+        );
+        if (b - a).abs() > worst.1.abs() {
+            worst = (key.to_string(), b - a);
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    assert!(
+        worst.1.abs() <= MAX_CHANGE_MM,
+        "a {TURN_DEG} degree turn moved {} by {:+.1} mm",
+        worst.0,
+        worst.1
+    );
+}
