@@ -762,6 +762,10 @@ pub struct EvalCmd {
     /// Do not run the learned pose model on the side view.
     #[arg(long)]
     pub no_person_model: bool,
+    /// Fit on each recording's true silhouettes (its truth folder's masks) instead of the
+    /// segmentation's: what is left is the fit's own error, the rest the segmentation's.
+    #[arg(long, conflicts_with = "baseline")]
+    pub truth_masks: bool,
 }
 
 /// The scratch folder of a recording's station masks during `fitstation eval`.
@@ -815,6 +819,9 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
         let mut o = opts.clone();
         if o.stature_m.is_none() {
             o.stature_m = src.recording().metadata().stature_m;
+        }
+        if cmd.truth_masks {
+            o.truth_masks = Some(crate::synth::truth_dir(rec).join("masks"));
         }
         // The station's masks, for the mask IoU (a scratch folder per recording).
         let masks = eval_masks_dir(rec);

@@ -163,6 +163,8 @@ struct ViewState {
     /// Background pixels of the segmentation inside and around its open holes.
     hole_px: Vec<u32>,
     target: SilhouetteTarget,
+    /// A silhouette given instead of the segmentation's ([`SilhouetteExecutor::give_masks`]).
+    given: Option<Mask>,
 }
 
 /// Owns the background models and scratch memory of both views; runs the silhouette
@@ -208,6 +210,7 @@ impl SilhouetteExecutor {
                 fill_scratch: Vec::new(),
                 hole_px: Vec::new(),
                 target: SilhouetteTarget::default(),
+                given: None,
             }
         };
         SilhouetteExecutor {
@@ -265,6 +268,15 @@ impl SilhouetteExecutor {
     ///
     /// # Errors
     /// A prior made for another frame size (the view then has none).
+    /// Diagnostics (`eval --truth-masks`): the next frames' silhouettes are these masks
+    /// (full frame, 0 or [`crate::imgproc::MASK_ON`]) instead of the segmentation's, per
+    /// view; None (or a mask of another size) leaves the view to the segmentation. The
+    /// segmentation still runs (its statistics and verdicts are kept).
+    pub fn give_masks(&mut self, front: Option<Mask>, side: Option<Mask>) {
+        self.front.given = front;
+        self.side.given = side;
+    }
+
     pub fn set_person_prior(
         &mut self,
         view: View,
@@ -342,6 +354,13 @@ impl SilhouetteExecutor {
                     source: e,
                 })?;
             timings.segment_ms += ms(ts);
+            if let Some(g) = state
+                .given
+                .as_ref()
+                .filter(|g| g.data.len() == mask.data.len())
+            {
+                mask.data.copy_from_slice(&g.data);
+            }
             let tc = Instant::now();
             let spans_filled = outline_view(state, frame, mask, &stats, view, &self.opts, analysis);
             to_view_plane(state, self.calib.camera(view), view, analysis);

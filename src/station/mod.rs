@@ -20,6 +20,7 @@ use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
 use crate::fit::correspond::MaskRef;
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
+use crate::imgproc::Mask;
 use crate::landmarks::graze::TemplateProfiles;
 use crate::landmarks::{LandmarkName, Verdict};
 use crate::measure::Measurements;
@@ -62,6 +63,10 @@ pub struct StationOptions {
     /// Write each processed frame pair's masks as `DIR/{front,side}/NNNNNN.png` (the
     /// evaluation's mask IoU); not timed.
     pub masks_out: Option<std::path::PathBuf>,
+    /// Diagnostics (`eval --truth-masks`): take each frame pair's silhouettes from
+    /// `DIR/{front,side}/NNNNNN.png` (a synthetic recording's true masks) instead of the
+    /// segmentation; a pair without them is segmented as usual.
+    pub truth_masks: Option<std::path::PathBuf>,
 }
 
 impl Default for StationOptions {
@@ -74,6 +79,7 @@ impl Default for StationOptions {
             settled_mm: 2.0,
             person_model: true,
             masks_out: None,
+            truth_masks: None,
         }
     }
 }
@@ -236,6 +242,10 @@ impl StationProcessor {
         }
         // The silhouette result is reused frame after frame (its masks and contours keep
         // their buffers): taken out of `self` for the frame, put back after.
+        if let Some(dir) = &self.opts.truth_masks {
+            let [front, side] = crate::camera::View::BOTH.map(|v| read_mask(dir, v, pair.index));
+            self.silhouettes.give_masks(front, side);
+        }
         let mut result = std::mem::replace(&mut self.silhouette_result, SilhouetteResult::empty());
         if let Err(e) = self
             .silhouettes
@@ -683,4 +693,16 @@ pub fn default_library() -> anyhow::Result<std::sync::Arc<crate::body::ShapeLibr
     Ok(std::sync::Arc::new(
         crate::body::ShapeLibrary::load_default().context("cannot load the shape library")?,
     ))
+}
+
+/// The mask `DIR/<view>/NNNNNN.png` of frame `index` (pixels above half grey are the
+/// person), None when it cannot be read.
+fn read_mask(dir: &std::path::Path, view: crate::camera::View, index: u64) -> Option<Mask> {
+    let p = dir.join(view.name()).join(format!("{index:06}.png"));
+    let g = image::open(p).ok()?.to_luma8();
+    let mut m = Mask::new(g.width(), g.height());
+    for (d, s) in m.data.iter_mut().zip(g.as_raw()) {
+        *d = if *s > 127 { crate::imgproc::MASK_ON } else { 0 };
+    }
+    Some(m)
 }
