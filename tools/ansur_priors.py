@@ -8,7 +8,11 @@ standard deviation (mm) of
          cannot see;
   depth: depth regressed on breadth, stature, weight and sex: how far the depth can be
          from what the rest of the body says, i.e. a depth the side view did not show;
-  breadth: the same for the breadth (an extent the front view did not show).
+  breadth: the same for the breadth (an extent the front view did not show);
+  front-only depth: depth regressed on breadth and stature alone: how far the depth can be
+         from what a front camera and a typed stature show (no weight, no sex), i.e. the
+         spread of the depth the station takes from its shape library when the side view
+         is missing (one-camera fits, station/uncertainty.rs `prior_one_view`).
 Usage: python3 tools/ansur_priors.py [ANSUR_DIR]   (numpy only)
 """
 import csv, os, sys
@@ -53,3 +57,17 @@ for name, circ, breadth, depth in [
     print(f"{name:8} {shape:9.1f} {dsd:9.1f} {bsd:11.1f}          {shape / c.mean():.4f}")
 t = col("thighcircumference")
 print(f"{'thigh':8} {resid_sd(t, stature, weight, sex, col('buttockcircumference')):9.1f}   (girth from stature, weight, sex and buttock girth: no thigh breadth or depth in ANSUR)")
+print()
+print("front view alone (breadths and stature seen, depth unseen):")
+print(f"{'girth':8} {'front-only depth sd':>20}   (mm)")
+for name, breadth, depth in [
+    ("chest", "chestbreadth", "chestdepth"),
+    ("waist", "waistbreadth", "waistdepth"),
+    ("hip", "hipbreadth", "buttockdepth"),
+]:
+    print(f"{name:8} {resid_sd(col(depth), col(breadth), stature):20.1f}")
+# No thigh breadth or depth in ANSUR: the thigh girth's spread given what a front view
+# shows nearby (hip breadth, stature), all of it taken as the unseen depth's:
+# girth sd / (pi/2).
+tg = resid_sd(t, col("hipbreadth"), stature)
+print(f"{'thigh':8} {tg / (np.pi / 2):20.1f}   (thigh girth sd given hip breadth and stature, {tg:.1f} mm, over pi/2)")

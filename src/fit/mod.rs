@@ -9,7 +9,8 @@
 //! 3. **Correspondence** ([`correspond`]): control vertices with left/right/front/back
 //!    status and their targets on the silhouettes, either variant.
 //! 4. **Refit**: the mean value deformer moves the controls to their targets while every
-//!    other vertex keeps its mean value encoding; head, hands and feet are then put back
+//!    other vertex keeps its mean value encoding (or its Laplacian coordinate, with
+//!    [`deformer::DeformerKind::Laplacian`]); head, hands and feet are then put back
 //!    rigidly (best rigid fit of their rest shape).
 //!
 //! Later frames warm-start: same candidate and controls, new targets, a warm solve.
@@ -17,6 +18,7 @@
 //! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
 
 pub mod correspond;
+pub mod deformer;
 pub mod parts;
 pub mod pose;
 pub mod sections;
@@ -24,7 +26,8 @@ pub mod shape;
 
 use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
 use crate::camera::StationCalibration;
-use crate::deform::{DecodeOptions, DecoderKind, MvcDeformer};
+use crate::deform::{DecodeOptions, DecoderKind};
+use deformer::{DeformerKind, FitDeformer};
 use crate::mesh::TriMesh;
 use correspond::{ControlSet, MaskRef, Part, SearchOptions, TargetStats, Variant};
 use glam::DVec3;
@@ -56,6 +59,9 @@ const PLACEMENT_MAX_LEAN: f64 = 0.02;
 #[derive(Debug, Clone)]
 pub struct FitOptions {
     pub variant: Variant,
+    /// The deformer of the refit (mean value, the default, or Laplacian).
+    pub deformer: DeformerKind,
+    /// The mean value deformer's decoder.
     pub decoder: DecoderKind,
     /// Refine the candidate's macro parameters (Gauss-Newton) after the library search.
     pub refine_shape: bool,
@@ -80,6 +86,7 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             variant: Variant::PerspectiveRim,
+            deformer: DeformerKind::Mvc,
             decoder: DecoderKind::FastGaussNewton,
             refine_shape: true,
             shape_iterations: 8,
@@ -158,7 +165,7 @@ struct SubjectState {
     /// Dense section targets' plan, and its vertices that are not sparse controls.
     plan: Option<sections::SectionPlan>,
     dense: Vec<u32>,
-    deformer: MvcDeformer,
+    deformer: FitDeformer,
     rest: TriMesh,
     /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
     pinned: Vec<u32>,
@@ -259,7 +266,30 @@ impl Fitter {
         side: MaskRef<'_>,
         obs: &Observation,
     ) -> Result<(&[DVec3], FitStats), FitError> {
-        let views = [(&calib.front, front), (&calib.side, side)];
+        self.fit_views(calib, front, Some(side), obs)
+    }
+
+    /// [`Fitter::fit`] with the side view optional. Without it (the side camera lost, or
+    /// a front photo alone) the fit goes by the front view and the stature: the library
+    /// body is chosen and refined on the front widths alone, so its depths are the shape
+    /// library's for a body of those widths and that stature (the library's prior of
+    /// what is not seen), and the side view's controls hold the candidate's positions (no
+    /// target: the section maps leave z as the candidate's). A warm refit without the
+    /// side view keeps the depths of the last frames that saw it.
+    pub fn fit_views(
+        &mut self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        side: Option<MaskRef<'_>>,
+        obs: &Observation,
+    ) -> Result<(&[DVec3], FitStats), FitError> {
+        // An empty side mask: every side-view search starts outside it and finds nothing.
+        let unseen = MaskRef {
+            width: 0,
+            height: 0,
+            data: &[],
+        };
+        let views = [(&calib.front, front), (&calib.side, side.unwrap_or(unseen))];
         self.side_occluders = obs.side_occluders;
         let warm = self.subject.is_some();
         let mut stats = FitStats {
@@ -291,6 +321,15 @@ impl Fitter {
                     Some(d)
                 } else {
                     None
+                };
+                let fitted = match (fitted, side) {
+                    // The fitted avatar's depths are the candidate's when no view saw
+                    // them: the next choice goes by what was seen.
+                    (Some(mut d), None) => {
+                        d.torso_depth.iter_mut().for_each(|x| *x = f64::NAN);
+                        Some(d)
+                    }
+                    (d, _) => d,
                 };
                 self.first_fit(calib, front, side, obs, fitted.as_ref())?;
                 let t1 = std::time::Instant::now();
@@ -439,12 +478,12 @@ impl Fitter {
         &mut self,
         calib: &StationCalibration,
         front: MaskRef<'_>,
-        side: MaskRef<'_>,
+        side: Option<MaskRef<'_>>,
         obs: &Observation,
         fitted: Option<&shape::ShapeDescriptor>,
     ) -> Result<(), FitError> {
         let f = (&calib.front, front);
-        let sd = (&calib.side, side);
+        let sd = side.map(|s| (&calib.side, s));
         let observed = match fitted {
             Some(d) => d.clone(),
             None => shape::observed_descriptor(f, sd, obs.stature_m, obs.torso_point),
@@ -578,7 +617,7 @@ impl Fitter {
             max_iterations: DECODE_ITERATIONS_PER_SOLVE,
             ..DecodeOptions::default()
         };
-        let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts)
+        let mut deformer = FitDeformer::new(self.opts.deformer, &body, self.opts.decoder, dopts)
             .map_err(|e| FitError::Deform(e.to_string()))?;
         deformer
             .set_controls(&indices)

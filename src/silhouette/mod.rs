@@ -234,13 +234,15 @@ impl SilhouetteExecutor {
                 view: "front",
                 source: e,
             })?;
-        self.side
-            .model
-            .learn(side)
-            .map_err(|e| LandmarkError::Segment {
-                view: "side",
-                source: e,
-            })?;
+        if crate::pipeline::has_frame(side) {
+            self.side
+                .model
+                .learn(side)
+                .map_err(|e| LandmarkError::Segment {
+                    view: "side",
+                    source: e,
+                })?;
+        }
         Ok(())
     }
 
@@ -289,11 +291,15 @@ impl SilhouetteExecutor {
         }
     }
 
+    /// Checks the frames' sizes; an empty side frame (the side camera gave nothing) is
+    /// allowed: that view is then left out.
     fn check(&self, front: &RgbImage, side: &RgbImage) -> Result<(), LandmarkError> {
         self.calib
             .check_frame_size(View::Front, front.width(), front.height())?;
-        self.calib
-            .check_frame_size(View::Side, side.width(), side.height())?;
+        if crate::pipeline::has_frame(side) {
+            self.calib
+                .check_frame_size(View::Side, side.width(), side.height())?;
+        }
         Ok(())
     }
 
@@ -311,7 +317,10 @@ impl SilhouetteExecutor {
         Ok(out)
     }
 
-    /// Processes a frame pair into `out`, reusing its buffers (the per-frame path).
+    /// Processes a frame pair into `out`, reusing its buffers (the per-frame path). An
+    /// empty side frame (the side camera gave nothing) leaves the side view out: its mask
+    /// and contour are empty, and the landmarks are lifted from the front view alone onto
+    /// the plane through the mark (z = 0).
     ///
     /// # Errors
     /// As [`SilhouetteExecutor::process`].
@@ -324,7 +333,15 @@ impl SilhouetteExecutor {
         self.check(front, side)?;
         let t0 = Instant::now();
         let mut timings = SilhouetteTimings::default();
+        let side_seen = crate::pipeline::has_frame(side);
         for view in View::BOTH {
+            if view == View::Side && !side_seen {
+                out.side = ViewAnalysis::empty(View::Side);
+                out.masks.side.width = 0;
+                out.masks.side.height = 0;
+                out.masks.side.data.clear();
+                continue;
+            }
             let (state, frame, analysis, mask) = match view {
                 View::Front => (&mut self.front, front, &mut out.front, &mut out.masks.front),
                 View::Side => (&mut self.side, side, &mut out.side, &mut out.masks.side),
@@ -411,7 +428,9 @@ impl SilhouetteExecutor {
         out.landmarks.verdicts.clear();
         out.landmarks.stature_m = 0.0;
         out.landmarks.trunk_asymmetry = None;
-        if !out.front.contour.is_empty() && !out.side.contour.is_empty() {
+        // Without a side frame the side axis is empty and the front view's points are
+        // lifted onto z = 0.
+        if !out.front.contour.is_empty() && (!out.side.contour.is_empty() || !side_seen) {
             let ff = analyse_front(&out.front.plane);
             out.landmarks.trunk_asymmetry =
                 analysis::trunk_asymmetry(&out.front.plane, &ff, &mut self.crossings);
