@@ -19,6 +19,7 @@
 
 pub mod correspond;
 pub mod deformer;
+pub mod one_view;
 pub mod parts;
 pub mod pose;
 pub mod sections;
@@ -117,6 +118,10 @@ pub struct Observation {
     /// not taken as theirs. All None when unknown (the trunk's own smooth trend then
     /// tells occluders apart, see [`sections`]).
     pub side_occluders: [Option<sections::SideOccluder>; sections::MAX_SIDE_OCCLUDERS],
+    /// The stature was lifted from the front view alone onto the plane z = this (no
+    /// side view, no typed stature): a fit without the side view moves it to the head's
+    /// depth ([`one_view`]). None: typed, or seen by both views.
+    pub stature_plane_z: Option<f64>,
 }
 
 impl Observation {
@@ -129,6 +134,7 @@ impl Observation {
             arm_angles: None,
             leg_angles: None,
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
+            stature_plane_z: None,
         }
     }
 }
@@ -193,6 +199,9 @@ pub struct Fitter {
     vertex_targets: Vec<Option<DVec3>>,
     /// Rasterised silhouette of the candidate (first fit only).
     raster: Vec<u8>,
+    /// The library bodies' mean depths relative to their toes (a fit without the side
+    /// view places the trunk by them, [`one_view`]).
+    depth_offsets: Option<one_view::DepthOffsets>,
 }
 
 impl Fitter {
@@ -206,12 +215,19 @@ impl Fitter {
         let mut library_descriptors = Vec::with_capacity(opts.library_size);
         let mut buf = Vec::new();
         let edges = shape::unique_edges(&template.mesh.triangles);
+        let mut offsets = Vec::with_capacity(opts.library_size);
         for seed in 0..opts.library_size as u64 {
             let p = ShapeLibrary::sample_adult(seed);
             library.body_into(&p, &mut buf);
             library_descriptors.push(shape::mesh_descriptor(&buf, &edges, &template_labels));
             library_params.push(p);
+            let stature = buf.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+            offsets.extend(
+                shape::torso_centre(&buf, &edges, &template_labels, PLACEMENT_LEVEL * stature)
+                    .and_then(|c| one_view::DepthOffsets::of_body(&buf, c)),
+            );
         }
+        let depth_offsets = one_view::DepthOffsets::mean(&offsets);
         let pose_joints = pose::PoseJoints::new(template);
         let rigid = pose::rigid_groups(template);
         Ok(Fitter {
@@ -231,6 +247,7 @@ impl Fitter {
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
             vertex_targets: Vec::new(),
             raster: Vec::new(),
+            depth_offsets,
         })
     }
 
@@ -290,6 +307,14 @@ impl Fitter {
             data: &[],
         };
         let views = [(&calib.front, front), (&calib.side, side.unwrap_or(unseen))];
+        let placed;
+        let obs = match side {
+            Some(_) => obs,
+            None => {
+                placed = self.place_in_depth(calib, front, obs);
+                &placed
+            }
+        };
         self.side_occluders = obs.side_occluders;
         let warm = self.subject.is_some();
         let mut stats = FitStats {
@@ -361,6 +386,37 @@ impl Fitter {
         stats.controls = s.controls.controls.len();
         stats.params = Some(s.params.clone());
         Ok((&s.positions, stats))
+    }
+
+    /// Without the side view: the trunk placed in depth behind the toes the front view
+    /// sees on the floor, by the library's mean proportions, and a stature lifted from
+    /// the front view moved to the head's depth ([`one_view`]). The observation as it
+    /// was when the feet are not seen.
+    fn place_in_depth(
+        &self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        obs: &Observation,
+    ) -> Observation {
+        let (Some(toes), Some(d)) = (one_view::toes_on_floor(&calib.front, front), self.depth_offsets)
+        else {
+            return *obs;
+        };
+        let mut o = *obs;
+        if let Some(plane_z) = obs.stature_plane_z {
+            // The head's depth depends on the stature only through the offset: one step.
+            let head_z = toes.z + d.head_top_rel * obs.stature_m;
+            o.stature_m = one_view::height_at_depth(&calib.front, obs.stature_m, plane_z, head_z);
+            o.stature_plane_z = None;
+        }
+        o.torso_point.z = toes.z + d.trunk_rel * o.stature_m;
+        if debug_enabled() {
+            eprintln!(
+                "one view: toes {toes:?}, trunk z {:.4}, stature {:.4} -> {:.4}",
+                o.torso_point.z, obs.stature_m, o.stature_m
+            );
+        }
+        o
     }
 
     /// Correspondence and decoding rounds on the current subject state.

@@ -660,6 +660,8 @@ fn observation(r: &SilhouetteResult, stature_override: Option<f64>) -> Option<Ob
         arm_angles: arms,
         leg_angles: legs,
         side_occluders: [None; crate::fit::sections::MAX_SIDE_OCCLUDERS],
+        // Without the side view the head top is lifted onto z = 0 (see `lifting`).
+        stature_plane_z: (stature_override.is_none() && r.side.contour.is_empty()).then_some(0.0),
     })
 }
 
