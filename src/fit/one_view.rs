@@ -103,6 +103,41 @@ mod tests {
     use super::*;
     use crate::camera::StationCalibration;
 
+    /// Prints the shape library's chest, waist and buttock breadths and depths (mm, at
+    /// the measurement levels) and statures of the bodies the fit chooses from, as CSV:
+    /// `tools/ansur_priors.py --library FILE` measures how far real people's depths are
+    /// from what the library says for their breadths and stature (the one-view prior).
+    /// `cargo test --release library_extents_csv -- --ignored --nocapture`
+    #[test]
+    #[ignore]
+    fn library_extents_csv() {
+        use crate::body::ShapeLibrary;
+        let library = ShapeLibrary::shared().expect("the bundled shape library");
+        let template = library.template();
+        let rings = template.mesh.one_rings();
+        let lm = crate::fit::pose::template_part_landmarks(template).expect("landmarks");
+        let labels = crate::fit::parts::label_parts(&template.mesh, &rings, &lm);
+        let edges = crate::fit::shape::unique_edges(&template.mesh.triangles);
+        println!("LIBRARY_CSV stature,chestbreadth,chestdepth,waistbreadth,waistdepth,hipbreadth,buttockdepth");
+        for seed in 0..crate::fit::FitOptions::default().library_size as u64 {
+            let body = library.body(&ShapeLibrary::sample_adult(seed));
+            let Ok(m) = crate::measure::measure(&body) else {
+                continue;
+            };
+            let l = &m.levels;
+            let at = |y| crate::fit::shape::trunk_extents(&body.positions, &edges, &labels, y);
+            let (Some(c), Some(w), Some(h)) = (at(l.chest_m), at(l.waist_m), at(l.hip_m)) else {
+                continue;
+            };
+            let stature = body.positions.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+            let mm = |v: f64| format!("{:.1}", v * 1000.0);
+            println!(
+                "LIBRARY_CSV {},{},{},{},{},{},{}",
+                mm(stature), mm(c.0), mm(c.1), mm(w.0), mm(w.1), mm(h.0), mm(h.1)
+            );
+        }
+    }
+
     #[test]
     fn the_floor_point_of_a_projected_toe_is_found_again() {
         let calib = StationCalibration::nominal(720, 1280, 1100.0, 3.3, 1.0, 0.9);

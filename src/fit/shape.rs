@@ -170,6 +170,21 @@ pub fn torso_centre(
     (hi.x > lo.x).then(|| DVec3::new(0.5 * (lo.x + hi.x), y, 0.5 * (lo.z + hi.z)))
 }
 
+/// Breadth (x extent) and depth (z extent) of the trunk's cross-section (torso and
+/// legs) at height `y`, metres.
+pub fn trunk_extents(
+    positions: &[DVec3],
+    edges: &[[u32; 2]],
+    labels: &[Part],
+    y: f64,
+) -> Option<(f64, f64)> {
+    let (lo, hi) = section_extents(positions, edges, labels, &[y], is_trunk)
+        .first()
+        .copied()
+        .flatten()?;
+    (hi.x > lo.x).then(|| (hi.x - lo.x, hi.z - lo.z))
+}
+
 /// Where the silhouette is left when walking from `start` along `dir` (station frame),
 /// or None when `start` is not inside the silhouette or no boundary is within `reach_m`.
 pub fn silhouette_exit(

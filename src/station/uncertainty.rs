@@ -136,17 +136,20 @@ pub fn frame_sigma_mm(key: &str, girth_mm: f64, evidence: Option<LevelEvidence>)
 }
 
 /// How far a section's depth can be from what the front view and the stature show, mm
-/// (standard deviation): the spread of real people's depth about its regression on
-/// breadth and stature alone over ANSUR II's 6,068 adults (`python3
-/// tools/ansur_priors.py`, "front view alone"). A fit without the side view takes the
-/// depth from the shape library's body for those widths and that stature, so the depth
-/// is known this well at best. ANSUR II has no thigh breadth or depth: the thigh takes
-/// its girth's spread given hip breadth and stature (33.0 mm), all as depth, over pi/2.
+/// (standard deviation). A fit without the side view takes the depth from the shape
+/// library's body for those widths and that stature, so this is the spread of real
+/// people's depths about the library's depth-given-breadth-and-stature line: over ANSUR
+/// II's 6,068 adults against the library's 252 bodies (`python3 tools/ansur_priors.py`,
+/// "front view alone", the larger of the spreads about ANSUR's own line and about the
+/// library's; the mean offset between the two is one of definitions: calipers at ANSUR's
+/// landmarks against section extents at the spec's levels). ANSUR II has no thigh
+/// breadth or depth: the thigh takes its girth's spread given hip breadth and stature
+/// (33.0 mm), all as depth, over pi/2.
 pub fn depth_prior_one_view_mm(key: &str) -> Option<f64> {
     Some(match key {
-        "chest_girth" => 21.6,
+        "chest_girth" => 25.3,
         "waist_girth" => 17.3,
-        "hip_girth" => 18.4,
+        "hip_girth" => 18.9,
         "thigh_girth_left" | "thigh_girth_right" => 21.0,
         _ => return None,
     })
