@@ -250,16 +250,19 @@ impl Recording {
             let s = list_frames(&sd)?;
             let mut front = Vec::new();
             let mut side = Vec::new();
-            let mut front_only = 0usize;
+            let mut front_only: Vec<u64> = Vec::new();
             for (k, p) in &f {
                 front.push(p.clone());
                 side.push(s.get(k).cloned());
-                front_only += s.get(k).is_none() as usize;
+                if !s.contains_key(k) {
+                    front_only.push(*k);
+                }
             }
-            if front_only > 0 {
+            if let Some(first) = front_only.first() {
                 // A lost side camera: those pairs are fitted from the front view alone.
                 warnings.push(format!(
-                    "{front_only} frames have no side frame: read as front-only pairs"
+                    "{} frames from {first:06} on have no side frame: read as front-only pairs",
+                    front_only.len()
                 ));
             }
             for k in s.keys().filter(|k| !f.contains_key(k)) {
