@@ -403,16 +403,17 @@ impl Fitter {
             return *obs;
         };
         let mut o = *obs;
+        let (toes_z, believed) = d.believed_toes_z(toes.z, obs.stature_m);
         if let Some(plane_z) = obs.stature_plane_z {
             // The head's depth depends on the stature only through the offset: one step.
-            let head_z = toes.z + d.head_top_rel * obs.stature_m;
+            let head_z = toes_z + d.head_top_rel * obs.stature_m;
             o.stature_m = one_view::height_at_depth(&calib.front, obs.stature_m, plane_z, head_z);
             o.stature_plane_z = None;
         }
-        o.torso_point.z = toes.z + d.trunk_rel * o.stature_m;
+        o.torso_point.z = toes_z + d.trunk_rel * o.stature_m;
         if debug_enabled() {
             eprintln!(
-                "one view: toes {toes:?}, trunk z {:.4}, stature {:.4} -> {:.4}",
+                "one view: toes {toes:?} (believed: {believed}), trunk z {:.4}, stature {:.4} -> {:.4}",
                 o.torso_point.z, obs.stature_m, o.stature_m
             );
         }

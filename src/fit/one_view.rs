@@ -23,12 +23,20 @@ const MIN_FOOT_ROW_PX: usize = 4;
 /// and toes, a fraction of stature.
 const FOOT_BAND_REL: f64 = 0.015;
 
+/// How far from the mark (metres) the feet' centre may be: the landmarks' off-mark
+/// verdict's distance ([`crate::landmarks::VerdictOptions`] `off_mark_m`): a subject
+/// further off is asked to step onto the mark. Toes seen further away are a lost lower
+/// edge of the feet (feet of the floor's colour), not a subject standing there.
+pub const MARK_TOLERANCE_M: f64 = 0.10;
+
 /// The depths of a standing body relative to its toes, fractions of its stature: the
-/// trunk's centre and the head top behind (negative: -Z of) the front of the toes.
+/// trunk's centre, the head top and the feet' centre behind (negative: -Z of) the front
+/// of the toes.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DepthOffsets {
     pub trunk_rel: f64,
     pub head_top_rel: f64,
+    pub feet_rel: f64,
 }
 
 impl DepthOffsets {
@@ -39,15 +47,15 @@ impl DepthOffsets {
         if !(stature > 0.1) {
             return None;
         }
-        let toe_z = positions
+        let (heel_z, toe_z) = positions
             .iter()
             .filter(|p| p.y < FOOT_BAND_REL * stature)
-            .map(|p| p.z)
-            .fold(f64::MIN, f64::max);
+            .fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
         let head = positions.iter().max_by(|a, b| a.y.total_cmp(&b.y))?;
-        (toe_z > f64::MIN).then(|| DepthOffsets {
+        (toe_z >= heel_z).then(|| DepthOffsets {
             trunk_rel: (trunk_centre.z - toe_z) / stature,
             head_top_rel: (head.z - toe_z) / stature,
+            feet_rel: (0.5 * (heel_z + toe_z) - toe_z) / stature,
         })
     }
 
@@ -57,7 +65,20 @@ impl DepthOffsets {
         (n > 0.0).then(|| DepthOffsets {
             trunk_rel: all.iter().map(|d| d.trunk_rel).sum::<f64>() / n,
             head_top_rel: all.iter().map(|d| d.head_top_rel).sum::<f64>() / n,
+            feet_rel: all.iter().map(|d| d.feet_rel).sum::<f64>() / n,
         })
+    }
+
+    /// The toes' depth to place a body of `stature_m` by: the seen toes' `toes_z`, unless
+    /// that puts the feet' centre further than [`MARK_TOLERANCE_M`] from the mark, then
+    /// the toes of feet centred on the mark (None: the seen toes were not believed).
+    pub fn believed_toes_z(&self, toes_z: f64, stature_m: f64) -> (f64, bool) {
+        let feet_z = toes_z + self.feet_rel * stature_m;
+        if feet_z.abs() <= MARK_TOLERANCE_M {
+            (toes_z, true)
+        } else {
+            (-self.feet_rel * stature_m, false)
+        }
     }
 }
 
