@@ -69,15 +69,17 @@ impl DepthOffsets {
         })
     }
 
-    /// The toes' depth to place a body of `stature_m` by: the seen toes' `toes_z`, unless
-    /// that puts the feet' centre further than [`MARK_TOLERANCE_M`] from the mark, then
-    /// the toes of feet centred on the mark (None: the seen toes were not believed).
+    /// The toes' depth to place a body of `stature_m` by, and whether the seen toes'
+    /// `toes_z` were believed: feet centred within [`MARK_TOLERANCE_M`] of the mark have
+    /// their toes within that plus half a foot (the library's) of it; toes seen further
+    /// away are a lost lower edge of the feet, and the toes of feet centred on the mark
+    /// are taken instead.
     pub fn believed_toes_z(&self, toes_z: f64, stature_m: f64) -> (f64, bool) {
-        let feet_z = toes_z + self.feet_rel * stature_m;
-        if feet_z.abs() <= MARK_TOLERANCE_M {
+        let half_foot = -self.feet_rel * stature_m;
+        if toes_z.abs() <= MARK_TOLERANCE_M + half_foot {
             (toes_z, true)
         } else {
-            (-self.feet_rel * stature_m, false)
+            (half_foot, false)
         }
     }
 }
