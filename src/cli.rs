@@ -5,11 +5,11 @@ use crate::camera::StationCalibration;
 use crate::capture::inject::FaultInjector;
 use crate::deform::DecoderKind;
 use crate::fit::correspond::Variant;
+use crate::fit::deformer::DeformerKind;
 use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, FrameSource, Phase, SourceError};
 use crate::recording::{Recording, RecordingWriter};
 use crate::station::output::write_fit_outputs;
-use crate::fit::deformer::DeformerKind;
 use crate::station::{
     default_library, StationOptions, StationProcessor, ViewSet, MEASUREMENT_KEYS,
 };

@@ -117,8 +117,13 @@ fn a_front_photo_alone_is_fitted_with_a_wider_uncertainty() {
     let one = fitstation(&one_args.iter().map(String::as_str).collect::<Vec<_>>());
     let mut two_args = common(&two_out);
     two_args.extend(
-        ["--side", p(&dir.join("side.png")), "--side-bg", p(&dir.join("side_bg.png"))]
-            .map(String::from),
+        [
+            "--side",
+            p(&dir.join("side.png")),
+            "--side-bg",
+            p(&dir.join("side_bg.png")),
+        ]
+        .map(String::from),
     );
     let two = fitstation(&two_args.iter().map(String::as_str).collect::<Vec<_>>());
 
@@ -132,9 +137,15 @@ fn a_front_photo_alone_is_fitted_with_a_wider_uncertainty() {
             num(&one, &["uncertainty_mm", k]),
             num(&two, &["uncertainty_mm", k]),
         );
-        assert!(pm1 > pm2 * 1.3, "{k}: one view ±{pm1} against two views ±{pm2}");
+        assert!(
+            pm1 > pm2 * 1.3,
+            "{k}: one view ±{pm1} against two views ±{pm2}"
+        );
         let err = num(&one, &["measurements_mm", k]) - num(&truth, &["measurements_mm", k]);
-        assert!(err.abs() <= pm1, "{k}: one-view error {err:+.1} mm outside ±{pm1}");
+        assert!(
+            err.abs() <= pm1,
+            "{k}: one-view error {err:+.1} mm outside ±{pm1}"
+        );
     }
 }
 
@@ -183,7 +194,10 @@ fn a_recording_with_the_side_camera_cut_half_way_keeps_producing_results() {
     for k in GIRTHS {
         let err = num(&report, &["measurements_mm", k]) - num(&truth, &["measurements_mm", k]);
         let pm = num(&report, &["uncertainty_mm", k]);
-        assert!(err.abs() <= pm, "{k}: error {err:+.1} mm after the cut, ±{pm}");
+        assert!(
+            err.abs() <= pm,
+            "{k}: error {err:+.1} mm after the cut, ±{pm}"
+        );
     }
 }
 
@@ -219,7 +233,10 @@ fn the_laplacian_deformer_fits_the_demo_with_sane_girths() {
             .lines()
             .filter_map(|l| l.strip_prefix("v "))
             .map(|l| {
-                let c: Vec<f64> = l.split_whitespace().map(|x| x.parse().expect("number")).collect();
+                let c: Vec<f64> = l
+                    .split_whitespace()
+                    .map(|x| x.parse().expect("number"))
+                    .collect();
                 [c[0], c[1], c[2]]
             })
             .collect()
@@ -231,5 +248,8 @@ fn the_laplacian_deformer_fits_the_demo_with_sane_girths() {
         .zip(&b)
         .map(|(p, q)| (0..3).map(|i| (p[i] - q[i]).powi(2)).sum::<f64>().sqrt())
         .fold(0.0, f64::max);
-    assert!(moved > 1e-3, "the two deformers gave the same avatar (max {moved} m apart)");
+    assert!(
+        moved > 1e-3,
+        "the two deformers gave the same avatar (max {moved} m apart)"
+    );
 }

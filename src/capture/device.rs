@@ -170,7 +170,7 @@ impl DevicePairSource {
     fn side_lost(&self) -> bool {
         self.side_started
             && self.last_frame[View::Side as usize].elapsed().as_secs_f64()
-            > self.config.reconnect.stall_timeout_s
+                > self.config.reconnect.stall_timeout_s
     }
 
     fn silent(&self) -> Option<String> {
@@ -575,7 +575,10 @@ mod tests {
         assert!(front_only.len() >= 10, "{pairs:?}");
         // Only while the side is silent past the 0.5 s stall timeout.
         // (Until the side camera is reopened, on the 0.1-0.2 s retry schedule.)
-        assert!(front_only.iter().all(|t| (0.75..1.95).contains(t)), "{front_only:?}");
+        assert!(
+            front_only.iter().all(|t| (0.75..1.95).contains(t)),
+            "{front_only:?}"
+        );
         assert!(
             pairs.iter().filter(|p| p.0 > 1.7 && p.2 != 255).count() >= 5,
             "two-camera pairs after: {pairs:?}"

@@ -116,7 +116,9 @@ impl LaplacianDeformer {
         }
         let hard = !opts.constraint_weight.is_finite();
         let system = match opts.symbolic {
-            SymbolicReuse::PerControlSet if hard => Engine::Reduced(ReducedSystem::new(rows.clone())),
+            SymbolicReuse::PerControlSet if hard => {
+                Engine::Reduced(ReducedSystem::new(rows.clone()))
+            }
             _ => Engine::Full(NormalEquations::new(rows.clone())?),
         };
         let component = components(&rings);

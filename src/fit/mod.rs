@@ -28,9 +28,9 @@ pub mod shape;
 use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
 use crate::camera::StationCalibration;
 use crate::deform::{DecodeOptions, DecoderKind};
-use deformer::{DeformerKind, FitDeformer};
 use crate::mesh::TriMesh;
 use correspond::{ControlSet, MaskRef, Part, SearchOptions, TargetStats, Variant};
+use deformer::{DeformerKind, FitDeformer};
 use glam::DVec3;
 use std::sync::Arc;
 
@@ -398,8 +398,10 @@ impl Fitter {
         front: MaskRef<'_>,
         obs: &Observation,
     ) -> Observation {
-        let (Some(toes), Some(d)) = (one_view::toes_on_floor(&calib.front, front), self.depth_offsets)
-        else {
+        let (Some(toes), Some(d)) = (
+            one_view::toes_on_floor(&calib.front, front),
+            self.depth_offsets,
+        ) else {
             return *obs;
         };
         let mut o = *obs;

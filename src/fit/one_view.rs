@@ -50,7 +50,9 @@ impl DepthOffsets {
         let (heel_z, toe_z) = positions
             .iter()
             .filter(|p| p.y < FOOT_BAND_REL * stature)
-            .fold((f64::MAX, f64::MIN), |(lo, hi), p| (lo.min(p.z), hi.max(p.z)));
+            .fold((f64::MAX, f64::MIN), |(lo, hi), p| {
+                (lo.min(p.z), hi.max(p.z))
+            });
         let head = positions.iter().max_by(|a, b| a.y.total_cmp(&b.y))?;
         (toe_z >= heel_z).then(|| DepthOffsets {
             trunk_rel: (trunk_centre.z - toe_z) / stature,
@@ -156,7 +158,13 @@ mod tests {
             let mm = |v: f64| format!("{:.1}", v * 1000.0);
             println!(
                 "LIBRARY_CSV {},{},{},{},{},{},{}",
-                mm(stature), mm(c.0), mm(c.1), mm(w.0), mm(w.1), mm(h.0), mm(h.1)
+                mm(stature),
+                mm(c.0),
+                mm(c.1),
+                mm(w.0),
+                mm(w.1),
+                mm(h.0),
+                mm(h.1)
             );
         }
     }

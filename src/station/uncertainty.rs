@@ -238,13 +238,24 @@ mod tests {
 
     #[test]
     fn one_view_is_wider_than_two_even_with_the_depth_unseen() {
-        for key in ["chest_girth", "waist_girth", "hip_girth", "thigh_girth_left"] {
+        for key in [
+            "chest_girth",
+            "waist_girth",
+            "hip_girth",
+            "thigh_girth_left",
+        ] {
             let both = frame_sigma_mm(key, 900.0, Some(ev(1.0, 1.0, 1.0)));
             let hidden = frame_sigma_mm(key, 900.0, Some(ev(1.0, 0.0, 1.0)));
             let one = frame_sigma_one_view_mm(key, 900.0, Some(ev(1.0, 1.0, 1.0)));
-            assert!(one > hidden && hidden > both, "{key}: {one} {hidden} {both}");
+            assert!(
+                one > hidden && hidden > both,
+                "{key}: {one} {hidden} {both}"
+            );
         }
-        assert_eq!(frame_sigma_one_view_mm("stature", 1700.0, None), STATURE_SIGMA_MM);
+        assert_eq!(
+            frame_sigma_one_view_mm("stature", 1700.0, None),
+            STATURE_SIGMA_MM
+        );
     }
 
     #[test]
