@@ -1,6 +1,7 @@
-//! The avatar in 3-D: an orbit camera, and an [`AvatarRenderer`] thread that renders
-//! the mesh with Lambert shading into its own colour + depth textures (egui's pass has
-//! no depth buffer), whose picture an [`AvatarCallback`] draws as a textured quad.
+//! The avatar in 3-D: an orbit camera ([`super::orbit`]), and an [`AvatarRenderer`]
+//! thread that renders the mesh with Lambert shading into its own colour + depth
+//! textures (egui's pass has no depth buffer), whose picture an [`AvatarCallback`] draws
+//! as a textured quad.
 //!
 //! The render is the most expensive thing on the screen for a software rasteriser (tens
 //! of thousands of triangles). Done inside a screen frame it would delay that frame's
@@ -13,99 +14,18 @@
 //! yaw 0 looks from +Z (the front camera's side), yaw +90 degrees from +X (the side
 //! camera's side). Texture sizes are physical pixels.
 
+use super::orbit::NEAR_M;
+pub use super::orbit::{OrbitCamera, ViewPreset};
+#[cfg(test)]
+use super::orbit::{DISTANCE_RANGE_M, PITCH_LIMIT_RAD};
 use super::stats::FrameClock;
 use crate::mesh::TriMesh;
 use eframe::egui_wgpu::{self, wgpu};
-use glam::{Mat4, Vec3};
+use glam::Vec3;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
-
-/// Orbit camera about the avatar.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OrbitCamera {
-    /// Rotation about +Y, radians (0: from the front).
-    pub yaw: f32,
-    /// Elevation, radians (positive: from above).
-    pub pitch: f32,
-    pub distance_m: f32,
-    pub target: Vec3,
-}
-
-/// A named viewpoint.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum ViewPreset {
-    Front,
-    Side,
-    ThreeQuarter,
-}
-
-/// Vertical field of view of the avatar view.
-const FOV_Y_RAD: f32 = 0.6;
-const NEAR_M: f32 = 0.05;
-const FAR_M: f32 = 50.0;
-/// Radians of orbit per point of mouse drag.
-const ORBIT_RAD_PER_POINT: f32 = 0.01;
-const PITCH_LIMIT_RAD: f32 = 1.4;
-const DISTANCE_RANGE_M: (f32, f32) = (0.8, 12.0);
-
-impl Default for OrbitCamera {
-    fn default() -> Self {
-        OrbitCamera {
-            yaw: 0.0,
-            pitch: 0.1,
-            distance_m: 3.6,
-            target: Vec3::new(0.0, 0.88, 0.0),
-        }
-    }
-}
-
-impl OrbitCamera {
-    pub fn preset(&mut self, p: ViewPreset) {
-        self.yaw = match p {
-            ViewPreset::Front => 0.0,
-            ViewPreset::Side => std::f32::consts::FRAC_PI_2,
-            ViewPreset::ThreeQuarter => std::f32::consts::FRAC_PI_4,
-        };
-        self.pitch = 0.1;
-    }
-
-    /// Applies a mouse drag (points) and a scroll (points, positive zooms in).
-    pub fn drag(&mut self, dx: f32, dy: f32, scroll: f32) {
-        self.yaw -= dx * ORBIT_RAD_PER_POINT;
-        self.pitch =
-            (self.pitch + dy * ORBIT_RAD_PER_POINT).clamp(-PITCH_LIMIT_RAD, PITCH_LIMIT_RAD);
-        self.distance_m = (self.distance_m * (-scroll * 0.002).exp())
-            .clamp(DISTANCE_RANGE_M.0, DISTANCE_RANGE_M.1);
-    }
-
-    /// Sets the distance so a body of `size` (metres, x y z extents) fills the view of
-    /// aspect width/height at any yaw, with a margin.
-    pub fn fit(&mut self, size: Vec3, aspect: f32) {
-        const MARGIN: f32 = 1.12;
-        let t = (FOV_Y_RAD * 0.5).tan();
-        let half_h = 0.5 * size.y;
-        let half_w = 0.5 * size.x.max(size.z);
-        let d = (half_h / t).max(half_w / (t * aspect.max(0.05))) * MARGIN + half_w;
-        self.distance_m = d.clamp(DISTANCE_RANGE_M.0, DISTANCE_RANGE_M.1);
-    }
-
-    pub fn eye(&self) -> Vec3 {
-        let dir = Vec3::new(
-            self.yaw.sin() * self.pitch.cos(),
-            self.pitch.sin(),
-            self.yaw.cos() * self.pitch.cos(),
-        );
-        self.target + dir * self.distance_m
-    }
-
-    /// Clip-from-station matrix (wgpu depth 0..1) for an aspect ratio width/height.
-    pub fn view_proj(&self, aspect: f32) -> Mat4 {
-        let proj = Mat4::perspective_rh(FOV_Y_RAD, aspect.max(0.01), NEAR_M, FAR_M);
-        proj * Mat4::look_at_rh(self.eye(), self.target, Vec3::Y)
-    }
-}
 
 /// Base colour of the avatar (linear RGB); the screenshot test looks for its hue.
 pub const AVATAR_RGB: [f32; 3] = [0.20, 0.55, 0.85];
@@ -226,132 +146,84 @@ struct GpuMesh {
     index_capacity: u64,
 }
 
-impl AvatarResources {
-    /// Creates the pipelines; `target_format` is the format of egui's pass.
-    fn new(device: &wgpu::Device, target_format: wgpu::TextureFormat) -> Self {
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("avatar"),
-            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
-        });
-        let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("avatar_uniforms"),
-            entries: &[wgpu::BindGroupLayoutEntry {
-                binding: 0,
-                visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
-                ty: wgpu::BindingType::Buffer {
-                    ty: wgpu::BufferBindingType::Uniform,
-                    has_dynamic_offset: false,
-                    min_binding_size: wgpu::BufferSize::new(UNIFORM_BYTES),
-                },
-                count: None,
-            }],
-        });
-        let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("avatar_uniforms"),
-            size: UNIFORM_BYTES,
-            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let uniform_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
-            label: Some("avatar_uniforms"),
-            layout: &uniform_layout,
-            entries: &[wgpu::BindGroupEntry {
-                binding: 0,
-                resource: uniform_buffer.as_entire_binding(),
-            }],
-        });
-        let mesh_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+/// The uniform block shared by the mesh and its shading: its layout, buffer and bind
+/// group.
+fn uniforms(device: &wgpu::Device) -> (wgpu::BindGroupLayout, wgpu::Buffer, wgpu::BindGroup) {
+    let uniform_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("avatar_uniforms"),
+        entries: &[wgpu::BindGroupLayoutEntry {
+            binding: 0,
+            visibility: wgpu::ShaderStages::VERTEX | wgpu::ShaderStages::FRAGMENT,
+            ty: wgpu::BindingType::Buffer {
+                ty: wgpu::BufferBindingType::Uniform,
+                has_dynamic_offset: false,
+                min_binding_size: wgpu::BufferSize::new(UNIFORM_BYTES),
+            },
+            count: None,
+        }],
+    });
+    let uniform_buffer = device.create_buffer(&wgpu::BufferDescriptor {
+        label: Some("avatar_uniforms"),
+        size: UNIFORM_BYTES,
+        usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+        mapped_at_creation: false,
+    });
+    let uniform_bind_group = device.create_bind_group(&wgpu::BindGroupDescriptor {
+        label: Some("avatar_uniforms"),
+        layout: &uniform_layout,
+        entries: &[wgpu::BindGroupEntry {
+            binding: 0,
+            resource: uniform_buffer.as_entire_binding(),
+        }],
+    });
+    (uniform_layout, uniform_buffer, uniform_bind_group)
+}
+
+/// The pipelines that draw the avatar's triangles into the offscreen target with depth:
+/// back faces culled, and two-sided.
+fn mesh_pipelines(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    uniform_layout: &wgpu::BindGroupLayout,
+) -> (wgpu::RenderPipeline, wgpu::RenderPipeline) {
+    let mesh_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("avatar_mesh"),
+        bind_group_layouts: &[Some(uniform_layout)],
+        immediate_size: 0,
+    });
+    let mesh_pipeline_for = |cull_mode| {
+        device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
             label: Some("avatar_mesh"),
-            bind_group_layouts: &[Some(&uniform_layout)],
-            immediate_size: 0,
-        });
-        let mesh_pipeline_for = |cull_mode| {
-            device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-                label: Some("avatar_mesh"),
-                layout: Some(&mesh_layout),
-                vertex: wgpu::VertexState {
-                    module: &module,
-                    entry_point: Some("vs_mesh"),
-                    buffers: &[Some(wgpu::VertexBufferLayout {
-                        array_stride: 6 * 4,
-                        step_mode: wgpu::VertexStepMode::Vertex,
-                        attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
-                    })],
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                },
-                primitive: wgpu::PrimitiveState {
-                    topology: wgpu::PrimitiveTopology::TriangleList,
-                    front_face: wgpu::FrontFace::Ccw,
-                    cull_mode,
-                    ..Default::default()
-                },
-                depth_stencil: Some(wgpu::DepthStencilState {
-                    format: DEPTH_FORMAT,
-                    depth_write_enabled: Some(true),
-                    depth_compare: Some(wgpu::CompareFunction::Less),
-                    stencil: wgpu::StencilState::default(),
-                    bias: wgpu::DepthBiasState::default(),
-                }),
-                multisample: wgpu::MultisampleState::default(),
-                fragment: Some(wgpu::FragmentState {
-                    module: &module,
-                    entry_point: Some("fs_mesh"),
-                    targets: &[Some(wgpu::ColorTargetState {
-                        format: COLOUR_FORMAT,
-                        blend: None,
-                        write_mask: wgpu::ColorWrites::ALL,
-                    })],
-                    compilation_options: wgpu::PipelineCompilationOptions::default(),
-                }),
-                multiview_mask: None,
-                cache: None,
-            })
-        };
-        let mesh_pipeline = mesh_pipeline_for(Some(wgpu::Face::Back));
-        let mesh_pipeline_two_sided = mesh_pipeline_for(None);
-        let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
-            label: Some("avatar_blit"),
-            entries: &[
-                wgpu::BindGroupLayoutEntry {
-                    binding: 0,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Texture {
-                        sample_type: wgpu::TextureSampleType::Float { filterable: true },
-                        view_dimension: wgpu::TextureViewDimension::D2,
-                        multisampled: false,
-                    },
-                    count: None,
-                },
-                wgpu::BindGroupLayoutEntry {
-                    binding: 1,
-                    visibility: wgpu::ShaderStages::FRAGMENT,
-                    ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
-                    count: None,
-                },
-            ],
-        });
-        let blit_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
-            label: Some("avatar_blit"),
-            bind_group_layouts: &[Some(&blit_layout)],
-            immediate_size: 0,
-        });
-        let blit_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
-            label: Some("avatar_blit"),
-            layout: Some(&blit_pipeline_layout),
+            layout: Some(&mesh_layout),
             vertex: wgpu::VertexState {
-                module: &module,
-                entry_point: Some("vs_blit"),
-                buffers: &[],
+                module,
+                entry_point: Some("vs_mesh"),
+                buffers: &[Some(wgpu::VertexBufferLayout {
+                    array_stride: 6 * 4,
+                    step_mode: wgpu::VertexStepMode::Vertex,
+                    attributes: &wgpu::vertex_attr_array![0 => Float32x3, 1 => Float32x3],
+                })],
                 compilation_options: wgpu::PipelineCompilationOptions::default(),
             },
-            primitive: wgpu::PrimitiveState::default(),
-            depth_stencil: None,
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                cull_mode,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: wgpu::StencilState::default(),
+                bias: wgpu::DepthBiasState::default(),
+            }),
             multisample: wgpu::MultisampleState::default(),
             fragment: Some(wgpu::FragmentState {
-                module: &module,
-                entry_point: Some("fs_blit"),
+                module,
+                entry_point: Some("fs_mesh"),
                 targets: &[Some(wgpu::ColorTargetState {
-                    format: target_format,
+                    format: COLOUR_FORMAT,
                     blend: None,
                     write_mask: wgpu::ColorWrites::ALL,
                 })],
@@ -359,7 +231,85 @@ impl AvatarResources {
             }),
             multiview_mask: None,
             cache: None,
+        })
+    };
+    let mesh_pipeline = mesh_pipeline_for(Some(wgpu::Face::Back));
+    let mesh_pipeline_two_sided = mesh_pipeline_for(None);
+    (mesh_pipeline, mesh_pipeline_two_sided)
+}
+
+/// The pipeline that copies the offscreen picture into egui's pass, with the layout of
+/// its texture and sampler.
+fn blit_pipeline(
+    device: &wgpu::Device,
+    module: &wgpu::ShaderModule,
+    target_format: wgpu::TextureFormat,
+) -> (wgpu::BindGroupLayout, wgpu::RenderPipeline) {
+    let blit_layout = device.create_bind_group_layout(&wgpu::BindGroupLayoutDescriptor {
+        label: Some("avatar_blit"),
+        entries: &[
+            wgpu::BindGroupLayoutEntry {
+                binding: 0,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Texture {
+                    sample_type: wgpu::TextureSampleType::Float { filterable: true },
+                    view_dimension: wgpu::TextureViewDimension::D2,
+                    multisampled: false,
+                },
+                count: None,
+            },
+            wgpu::BindGroupLayoutEntry {
+                binding: 1,
+                visibility: wgpu::ShaderStages::FRAGMENT,
+                ty: wgpu::BindingType::Sampler(wgpu::SamplerBindingType::Filtering),
+                count: None,
+            },
+        ],
+    });
+    let blit_pipeline_layout = device.create_pipeline_layout(&wgpu::PipelineLayoutDescriptor {
+        label: Some("avatar_blit"),
+        bind_group_layouts: &[Some(&blit_layout)],
+        immediate_size: 0,
+    });
+    let blit_pipeline = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+        label: Some("avatar_blit"),
+        layout: Some(&blit_pipeline_layout),
+        vertex: wgpu::VertexState {
+            module,
+            entry_point: Some("vs_blit"),
+            buffers: &[],
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+        },
+        primitive: wgpu::PrimitiveState::default(),
+        depth_stencil: None,
+        multisample: wgpu::MultisampleState::default(),
+        fragment: Some(wgpu::FragmentState {
+            module,
+            entry_point: Some("fs_blit"),
+            targets: &[Some(wgpu::ColorTargetState {
+                format: target_format,
+                blend: None,
+                write_mask: wgpu::ColorWrites::ALL,
+            })],
+            compilation_options: wgpu::PipelineCompilationOptions::default(),
+        }),
+        multiview_mask: None,
+        cache: None,
+    });
+    (blit_layout, blit_pipeline)
+}
+
+impl AvatarResources {
+    /// Creates the pipelines; `target_format` is the format of egui's pass.
+    fn new(device: &wgpu::Device, target_format: wgpu::TextureFormat) -> Self {
+        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("avatar"),
+            source: wgpu::ShaderSource::Wgsl(SHADER.into()),
         });
+        let (uniform_layout, uniform_buffer, uniform_bind_group) = uniforms(device);
+        let (mesh_pipeline, mesh_pipeline_two_sided) =
+            mesh_pipelines(device, &module, &uniform_layout);
+        let (blit_layout, blit_pipeline) = blit_pipeline(device, &module, target_format);
         let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
             label: Some("avatar_blit"),
             mag_filter: wgpu::FilterMode::Linear,

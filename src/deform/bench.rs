@@ -403,11 +403,12 @@ pub fn rigid_parts(args: &BenchArgs) -> anyhow::Result<Vec<Vec<u32>>> {
     Ok(out)
 }
 
-/// Runs the benchmark and prints its figures.
+/// Runs the benchmark and prints its figures: the mean value encoding, the fast
+/// decoder's setup, decodes, refits and frame sequence, its frozen-offset variant, the
+/// paper's decoder and Laplacian editing, then the libigl peer on the same problem.
 pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     crate::io::atomic::check_dir(&args.out).map_err(|e| anyhow::anyhow!("--out: {e}"))?;
     let mesh = load_mesh(&args)?;
-    let n = mesh.vertex_count();
     let parts = if args.free_extremities {
         Vec::new()
     } else {
@@ -415,6 +416,46 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     };
     let prob = problem(&mesh, &parts);
     let repeats = args.repeats.max(1);
+    describe_problem(&mesh, &prob);
+    let encoding = time_encoding(&mesh, repeats)?;
+    // Re-linearisation is timed on its own below, not folded into a solve.
+    let opts = DecodeOptions {
+        max_move_m: args.tol_m,
+        max_iterations: 200,
+        relinearise_after: usize::MAX,
+        ..Default::default()
+    };
+    let mut fast = time_fast_setup(&mesh, &encoding, &prob, opts)?;
+    let decodes = time_fast_decodes(&mut fast, &mesh, &prob, repeats)?;
+    time_frame_sequence(&mut fast, &prob, &decodes.warm_pos, repeats)?;
+    time_frozen_variant(&mesh, &encoding, &prob, opts)?;
+    time_paper_decoder(&args, &mesh, encoding, &prob, opts, &decodes)?;
+    time_laplacian(&mesh, &prob, opts, repeats)?;
+
+    println!(
+        "memory:              {:8.1} MB fast engine heap, {:.1} MB process peak RSS",
+        fast.heap_bytes() as f64 / 1e6,
+        peak_rss_mb().unwrap_or(f64::NAN)
+    );
+
+    // Files for the outside peer, then the peer itself.
+    crate::io::atomic::create_dir(&args.out)?;
+    let mesh_path = args.out.join("mesh.obj");
+    write_obj(&mesh_path, &mesh)?;
+    let cons = args.out.join("constraints.csv");
+    write_constraints(&cons, &prob.controls, &prob.targets)?;
+    let refit = args.out.join("refit.csv");
+    write_constraints(&refit, &prob.controls, &prob.refit_targets)?;
+    println!("peer input:          {}", args.out.display());
+    if !args.no_libigl {
+        run_libigl_peer(&mesh_path, &cons, &refit, decodes.fast_ms, decodes.warm_ms);
+    }
+    Ok(())
+}
+
+/// The mesh and the deformation problem: its controls and how far their targets move.
+fn describe_problem(mesh: &TriMesh, prob: &DeformProblem) {
+    let n = mesh.vertex_count();
     println!(
         "mesh: {} vertices, {} triangles, {} boundary edges, mean edge {:.2} mm",
         n,
@@ -437,8 +478,11 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         TORSO_WIDENING * 100.0,
         REFIT_NUDGE_M * 1e3
     );
+}
 
-    // Encoding.
+/// Times the mean value encoding of every vertex in its one-ring's tangent plane.
+fn time_encoding(mesh: &TriMesh, repeats: usize) -> anyhow::Result<MeanValueEncoding> {
+    let n = mesh.vertex_count();
     let t = Instant::now();
     let rings = mesh.one_rings();
     let rings_ms = ms(t);
@@ -460,19 +504,20 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         rings_ms,
         degenerate
     );
+    Ok(encoding)
+}
 
-    // Re-linearisation is timed on its own below, not folded into a solve.
-    let opts = DecodeOptions {
-        max_move_m: args.tol_m,
-        max_iterations: 200,
-        relinearise_after: usize::MAX,
-        ..Default::default()
-    };
-
-    // Fast decoder: analysis, factorisation, decode from rest, warm refit.
+/// Times the fast decoder's analysis and factorisation (and, for comparison, the
+/// frozen-offset engine's full-size analysis kept across control sets).
+fn time_fast_setup(
+    mesh: &TriMesh,
+    encoding: &MeanValueEncoding,
+    prob: &DeformProblem,
+    opts: DecodeOptions,
+) -> anyhow::Result<MvcDeformer> {
     let t = Instant::now();
     let mut fast =
-        MvcDeformer::from_encoding(&mesh, encoding.clone(), DecoderKind::FastGaussNewton, opts)?;
+        MvcDeformer::from_encoding(mesh, encoding.clone(), DecoderKind::FastGaussNewton, opts)?;
     let new_ms = ms(t);
     let t = Instant::now();
     fast.set_controls(&prob.controls)?;
@@ -489,35 +534,53 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     );
     // The frozen-offset engine's other strategy: one full-size analysis kept across
     // control sets.
-    {
-        let full_opts = DecodeOptions {
-            symbolic: super::SymbolicReuse::AcrossControlSets,
-            linearisation: super::Linearisation::FrozenOffsets,
-            ..opts
-        };
-        let t = Instant::now();
-        let mut full = MvcDeformer::from_encoding(
-            &mesh,
-            encoding.clone(),
-            DecoderKind::FastGaussNewton,
-            full_opts,
-        )?;
-        let full_new_ms = ms(t);
-        let t = Instant::now();
-        full.set_controls(&prob.controls)?;
-        let full_factor_ms = ms(t);
-        let mut pos = mesh.positions.clone();
-        let t = Instant::now();
-        let r = full.solve(&prob.targets, &mut pos)?;
-        println!(
-            "  (frozen offsets, full-size variant: {:.2} ms analysis once per mesh, {:.2} ms numeric factor per control set, {} factor values, decode from rest {:.2} ms in {} steps)",
-            full_new_ms,
-            full_factor_ms,
-            full.factor_len(),
-            ms(t),
-            r.iterations
-        );
-    }
+    let full_opts = DecodeOptions {
+        symbolic: super::SymbolicReuse::AcrossControlSets,
+        linearisation: super::Linearisation::FrozenOffsets,
+        ..opts
+    };
+    let t = Instant::now();
+    let mut full = MvcDeformer::from_encoding(
+        &mesh,
+        encoding.clone(),
+        DecoderKind::FastGaussNewton,
+        full_opts,
+    )?;
+    let full_new_ms = ms(t);
+    let t = Instant::now();
+    full.set_controls(&prob.controls)?;
+    let full_factor_ms = ms(t);
+    let mut pos = mesh.positions.clone();
+    let t = Instant::now();
+    let r = full.solve(&prob.targets, &mut pos)?;
+    println!(
+        "  (frozen offsets, full-size variant: {:.2} ms analysis once per mesh, {:.2} ms numeric factor per control set, {} factor values, decode from rest {:.2} ms in {} steps)",
+        full_new_ms,
+        full_factor_ms,
+        full.factor_len(),
+        ms(t),
+        r.iterations
+    );
+    Ok(fast)
+}
+
+/// The fast decoder's figures that the paper's decoder and the peer are compared with:
+/// median decode from rest and warm refit, and the shapes they reached.
+struct FastDecodes {
+    fast_ms: f64,
+    warm_ms: f64,
+    fast_pos: Vec<DVec3>,
+    warm_pos: Vec<DVec3>,
+}
+
+/// Times the fast decoder over frame sequences: a decode from the rest shape, a warm
+/// refit with the rest linearisation, re-linearising, and the refit again.
+fn time_fast_decodes(
+    fast: &mut MvcDeformer,
+    mesh: &TriMesh,
+    prob: &DeformProblem,
+    repeats: usize,
+) -> anyhow::Result<FastDecodes> {
     // Each repeat is a frame sequence: a decode from the rest shape (linearised at rest,
     // as after `set_controls`), a warm refit after the targets moved a few millimetres
     // with that linearisation, then the same refit after re-linearising at the first
@@ -569,77 +632,109 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         "fast warm refit:     {:8.2} ms median of {repeats} (fastest {:.2} ms): {} steps, last move {:.2e} m, residual {:.2e} m, converged {} (linearised at the previous frame)",
         warm_ms, warm_min_ms, warm_report.iterations, warm_report.max_move_m, warm_report.residual_m, warm_report.converged
     );
+    Ok(FastDecodes {
+        fast_ms,
+        warm_ms,
+        fast_pos,
+        warm_pos,
+    })
+}
+
+/// Times the live station's case: frame after frame from the previous result, the
+/// targets alternating between the two sets; then where a chord step's time goes.
+fn time_frame_sequence(
+    fast: &mut MvcDeformer,
+    prob: &DeformProblem,
+    warm_pos: &[DVec3],
+    repeats: usize,
+) -> anyhow::Result<()> {
     // The live station: frame after frame from the previous result (linearised at the
     // first frame's result above), the targets alternating between the two sets.
-    {
-        let frames = 2 * repeats;
-        let mut pos = warm_pos.clone();
-        let mut times = Vec::with_capacity(frames);
-        let (mut lo, mut hi, mut all_converged) = (usize::MAX, 0usize, true);
-        for k in 0..frames {
-            let t_set = if k % 2 == 0 {
-                &prob.targets
-            } else {
-                &prob.refit_targets
-            };
-            let t = Instant::now();
-            let r = fast.solve(t_set, &mut pos)?;
-            times.push(ms(t));
-            lo = lo.min(r.iterations);
-            hi = hi.max(r.iterations);
-            all_converged &= r.converged;
-        }
-        let fastest = min_ms(&times);
-        println!(
-            "fast frame sequence: {:8.2} ms median of {frames} frames (fastest {:.2} ms; targets moving {:.1} mm per frame, from the previous frame): {lo}-{hi} steps, all converged {all_converged}",
-            median_ms(times),
-            fastest,
-            REFIT_NUDGE_M * 1e3
-        );
+    let frames = 2 * repeats;
+    let mut pos = warm_pos.to_vec();
+    let mut times = Vec::with_capacity(frames);
+    let (mut lo, mut hi, mut all_converged) = (usize::MAX, 0usize, true);
+    for k in 0..frames {
+        let t_set = if k % 2 == 0 {
+            &prob.targets
+        } else {
+            &prob.refit_targets
+        };
+        let t = Instant::now();
+        let r = fast.solve(t_set, &mut pos)?;
+        times.push(ms(t));
+        lo = lo.min(r.iterations);
+        hi = hi.max(r.iterations);
+        all_converged &= r.converged;
     }
+    let fastest = min_ms(&times);
+    println!(
+        "fast frame sequence: {:8.2} ms median of {frames} frames (fastest {:.2} ms; targets moving {:.1} mm per frame, from the previous frame): {lo}-{hi} steps, all converged {all_converged}",
+        median_ms(times),
+        fastest,
+        REFIT_NUDGE_M * 1e3
+    );
     // Where a chord step's time goes (after the sequence: this resets the residual
     // remembered at its result).
-    if let Some((residual_ms, solve_ms, read, held)) = fast.step_part_times(&warm_pos, repeats) {
+    if let Some((residual_ms, solve_ms, read, held)) = fast.step_part_times(warm_pos, repeats) {
         println!(
             "fast step parts:     {:8.2} ms residual pass (every free vertex decoded), {:.2} ms block-LU solve ({read} of the factor's {held} blocks read), medians of {repeats}",
             residual_ms, solve_ms
         );
     }
-    // The frozen-offset variant (scalar factor, Anderson mixing) for comparison.
-    {
-        let frozen_opts = DecodeOptions {
-            linearisation: super::Linearisation::FrozenOffsets,
-            ..opts
-        };
-        let mut frozen = MvcDeformer::from_encoding(
-            &mesh,
-            encoding.clone(),
-            DecoderKind::FastGaussNewton,
-            frozen_opts,
-        )?;
-        frozen.set_controls(&prob.controls)?;
-        let mut pos = mesh.positions.clone();
-        let t = Instant::now();
-        let r = frozen.solve(&prob.targets, &mut pos)?;
-        let rest_ms = ms(t);
-        let t = Instant::now();
-        let w = frozen.solve(&prob.refit_targets, &mut pos)?;
-        println!(
-            "  (frozen-offset variant: decode from rest {:.2} ms in {} steps, warm refit {:.2} ms in {} steps)",
-            rest_ms,
-            r.iterations,
-            ms(t),
-            w.iterations
-        );
-    }
+    Ok(())
+}
 
-    // Paper-style decoder to the same tolerance.
+/// Times the frozen-offset variant (scalar factor, Anderson mixing) for comparison.
+fn time_frozen_variant(
+    mesh: &TriMesh,
+    encoding: &MeanValueEncoding,
+    prob: &DeformProblem,
+    opts: DecodeOptions,
+) -> anyhow::Result<()> {
+    let frozen_opts = DecodeOptions {
+        linearisation: super::Linearisation::FrozenOffsets,
+        ..opts
+    };
+    let mut frozen = MvcDeformer::from_encoding(
+        &mesh,
+        encoding.clone(),
+        DecoderKind::FastGaussNewton,
+        frozen_opts,
+    )?;
+    frozen.set_controls(&prob.controls)?;
+    let mut pos = mesh.positions.clone();
+    let t = Instant::now();
+    let r = frozen.solve(&prob.targets, &mut pos)?;
+    let rest_ms = ms(t);
+    let t = Instant::now();
+    let w = frozen.solve(&prob.refit_targets, &mut pos)?;
+    println!(
+        "  (frozen-offset variant: decode from rest {:.2} ms in {} steps, warm refit {:.2} ms in {} steps)",
+        rest_ms,
+        r.iterations,
+        ms(t),
+        w.iterations
+    );
+    Ok(())
+}
+
+/// Times the paper's iterative decoder to the same tolerance and compares its shape and
+/// time with the fast decoder's.
+fn time_paper_decoder(
+    args: &BenchArgs,
+    mesh: &TriMesh,
+    encoding: MeanValueEncoding,
+    prob: &DeformProblem,
+    opts: DecodeOptions,
+    fast: &FastDecodes,
+) -> anyhow::Result<()> {
     let paper_opts = DecodeOptions {
         max_iterations: args.paper_max_sweeps,
         ..opts
     };
     let mut paper =
-        MvcDeformer::from_encoding(&mesh, encoding, DecoderKind::PaperIterative, paper_opts)?;
+        MvcDeformer::from_encoding(mesh, encoding, DecoderKind::PaperIterative, paper_opts)?;
     paper.set_controls(&prob.controls)?;
     let mut paper_pos = mesh.positions.clone();
     let t = Instant::now();
@@ -651,18 +746,26 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
     );
     let agree = paper_pos
         .iter()
-        .zip(&fast_pos)
+        .zip(&fast.fast_pos)
         .map(|(a, b)| (*a - *b).length())
         .fold(0.0, f64::max);
     println!(
         "decoders agree to:   {:8.4} mm (max vertex distance)",
         agree * 1e3
     );
-    println!("ratio paper / fast:  {:8.1}x", paper_ms / fast_ms);
+    println!("ratio paper / fast:  {:8.1}x", paper_ms / fast.fast_ms);
+    Ok(())
+}
 
-    // Laplacian editing for reference.
+/// Times Laplacian editing on the same problem, for reference.
+fn time_laplacian(
+    mesh: &TriMesh,
+    prob: &DeformProblem,
+    opts: DecodeOptions,
+    repeats: usize,
+) -> anyhow::Result<()> {
     let t = Instant::now();
-    let mut lap = LaplacianDeformer::new(&mesh, opts)?;
+    let mut lap = LaplacianDeformer::new(mesh, opts)?;
     let lap_new_ms = ms(t);
     let t = Instant::now();
     lap.set_controls(&prob.controls)?;
@@ -680,25 +783,6 @@ pub fn run(args: BenchArgs) -> anyhow::Result<()> {
         lap_new_ms,
         lap_factor_ms
     );
-
-    println!(
-        "memory:              {:8.1} MB fast engine heap, {:.1} MB process peak RSS",
-        fast.heap_bytes() as f64 / 1e6,
-        peak_rss_mb().unwrap_or(f64::NAN)
-    );
-
-    // Files for the outside peer, then the peer itself.
-    crate::io::atomic::create_dir(&args.out)?;
-    let mesh_path = args.out.join("mesh.obj");
-    write_obj(&mesh_path, &mesh)?;
-    let cons = args.out.join("constraints.csv");
-    write_constraints(&cons, &prob.controls, &prob.targets)?;
-    let refit = args.out.join("refit.csv");
-    write_constraints(&refit, &prob.controls, &prob.refit_targets)?;
-    println!("peer input:          {}", args.out.display());
-    if !args.no_libigl {
-        run_libigl_peer(&mesh_path, &cons, &refit, fast_ms, warm_ms);
-    }
     Ok(())
 }
 

@@ -293,7 +293,8 @@ fn profile_chart(row: &EvalRow) -> String {
     s
 }
 
-/// The whole report page.
+/// The whole report page: the measurement summary and error bars, surface and mask
+/// scores, landmark and timing tables, then one card per subject.
 pub fn report(table: &EvalTable, thumbs: &[Vec<Thumb>]) -> String {
     let mut s = String::from(
         "<!DOCTYPE html><html><head><meta charset=\"utf-8\"><title>fitstation evaluation</title><style>\
@@ -307,6 +308,21 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         "<h1>fitstation evaluation: {} subject(s)</h1>",
         table.rows.len()
     );
+    measurements_section(&mut s, table);
+    surface_section(&mut s, table);
+    landmarks_section(&mut s, table);
+    timings_section(&mut s, table);
+    subjects_section(&mut s, table, thumbs);
+    for f in &table.failures {
+        let _ = write!(s, "<p style=\"color:#b00\">FAILED: {}</p>", esc(f));
+    }
+    s.push_str("</body></html>\n");
+    s
+}
+
+/// The per-measurement MAE, bias and worst error, the worst girth, and each measurement's
+/// bars of signed error per subject.
+fn measurements_section(s: &mut String, table: &EvalTable) {
     s.push_str("<h2>Measurements (fitted - true, mm)</h2><table><tr><th>measurement</th><th>subjects</th><th>MAE</th><th>bias</th><th>worst</th><th>worst subject</th></tr>");
     let summary = table.summary();
     for m in &summary {
@@ -333,7 +349,12 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
             error_chart(table, &m.name)
         );
     }
-    s.push_str("</div><h2>Surface and masks</h2><table><tr><th>subject</th><th>surface mean mm</th><th>p95 mm</th><th>max mm</th><th>IoU front</th><th>IoU side</th></tr>");
+    s.push_str("</div>");
+}
+
+/// Per subject: the surface distance to the true body and the mask IoU of each view.
+fn surface_section(s: &mut String, table: &EvalTable) {
+    s.push_str("<h2>Surface and masks</h2><table><tr><th>subject</th><th>surface mean mm</th><th>p95 mm</th><th>max mm</th><th>IoU front</th><th>IoU side</th></tr>");
     for r in &table.rows {
         let d = r
             .surface
@@ -361,6 +382,10 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         );
     }
     s.push_str("</table>");
+}
+
+/// Per landmark of each source: mean 3-D distance and height errors over the subjects.
+fn landmarks_section(s: &mut String, table: &EvalTable) {
     for source in LandmarkSource::ALL {
         let rows = table.landmark_summary(source);
         if rows.is_empty() {
@@ -384,6 +409,10 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         }
         s.push_str("</table>");
     }
+}
+
+/// Stage timings over the subjects: median of the medians and the worst p95.
+fn timings_section(s: &mut String, table: &EvalTable) {
     let timings = table.timing_summary();
     if !timings.is_empty() {
         s.push_str("<h2>Stage timings (ms)</h2><table><tr><th>stage</th><th>median</th><th>worst p95</th></tr>");
@@ -398,6 +427,10 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         }
         s.push_str("</table>");
     }
+}
+
+/// One card per subject: its true and fitted girth profiles and the overlay thumbnails.
+fn subjects_section(s: &mut String, table: &EvalTable, thumbs: &[Vec<Thumb>]) {
     s.push_str("<h2>Subjects</h2><p class=\"legend\"><span style=\"color:#111\">&#9632; true girth profile</span><span style=\"color:#e020b0\">&#9632; fitted profile / fitted silhouette</span><span style=\"color:#28c83c\">&#9632; true silhouette outline</span></p>");
     for (i, r) in table.rows.iter().enumerate() {
         s.push_str("<div class=\"card\" style=\"margin-bottom:12px\"><div class=\"grid\">");
@@ -415,11 +448,6 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
         }
         s.push_str("</div></div>");
     }
-    for f in &table.failures {
-        let _ = write!(s, "<p style=\"color:#b00\">FAILED: {}</p>", esc(f));
-    }
-    s.push_str("</body></html>\n");
-    s
 }
 
 #[cfg(test)]

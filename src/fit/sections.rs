@@ -205,6 +205,11 @@ pub struct SectionScratch {
     window: Vec<f64>,
     centres: Vec<f64>,
     scales: Vec<f64>,
+    /// Per entry of the chain being fitted: (rim, edge) per side, and the rims' middle.
+    constraints: Vec<[Option<(f64, f64)>; 2]>,
+    mids: Vec<f64>,
+    raw_shift: Vec<Option<f64>>,
+    shifts: Vec<f64>,
 }
 
 fn dense_part(p: Part) -> bool {
@@ -496,13 +501,49 @@ impl SectionPlan {
         out: &mut Vec<Delta>,
         evidence: &mut Vec<EntryEvidence>,
     ) {
-        let m = chain.entries.len();
+        let mut constraints = std::mem::take(&mut scratch.constraints);
+        let mut mids = std::mem::take(&mut scratch.mids);
+        self.gather_constraints(
+            chain,
+            positions,
+            set,
+            targets,
+            scratch,
+            &mut constraints,
+            &mut mids,
+        );
+        let raw_constraints = if super::debug_enabled() && chain.axis == Axis::Z {
+            Some(constraints.clone())
+        } else {
+            None
+        };
+        drop_foreign_edges(chain.axis, occluders, scratch, &mut constraints);
+        if let Some(raw) = raw_constraints {
+            print_side_constraints(occluders, &scratch.centres, &raw, &constraints);
+        }
+        fit_maps(&constraints, &mids, scratch, out, evidence);
+        scratch.constraints = constraints;
+        scratch.mids = mids;
+    }
+
+    /// Per entry of the chain: its centre height (into `scratch.centres`), the middle of
+    /// the candidate's rims on the two sides (`mids`), and per side the edge the view
+    /// showed, as (the candidate's rim, the edge) along the chain's axis (`constraints`).
+    #[allow(clippy::too_many_arguments)]
+    fn gather_constraints(
+        &self,
+        chain: &Chain,
+        positions: &[DVec3],
+        set: &ControlSet,
+        targets: &[Option<DVec3>],
+        scratch: &mut SectionScratch,
+        constraints: &mut Vec<[Option<(f64, f64)>; 2]>,
+        mids: &mut Vec<f64>,
+    ) {
         let (hi_status, lo_status) = chain.axis.statuses();
         scratch.centres.clear();
-        scratch.raw_scale.clear();
-        // Per entry: the union's current extremes and the constraints (p, t) found.
-        let mut constraints: Vec<[Option<(f64, f64)>; 2]> = Vec::with_capacity(m);
-        let mut mids: Vec<f64> = Vec::with_capacity(m);
+        constraints.clear();
+        mids.clear();
         for e in &chain.entries {
             let (mut hi, mut lo) = (f64::MIN, f64::MAX);
             let mut c_hi: Option<(f64, f64)> = None;
@@ -550,132 +591,142 @@ impl SectionPlan {
             scratch
                 .centres
                 .push(if yn > 0 { ysum / yn as f64 } else { 0.0 });
-            let mid = if hi >= lo { 0.5 * (hi + lo) } else { 0.0 };
-            mids.push(mid);
+            mids.push(if hi >= lo { 0.5 * (hi + lo) } else { 0.0 });
             constraints.push([c_hi, c_lo]);
         }
-        let raw_constraints = if super::debug_enabled() && chain.axis == Axis::Z {
-            Some(constraints.clone())
-        } else {
-            None
-        };
-        // In the side view, an edge inside a known limb's capsule may be the limb's: it is
-        // not the part's.
-        // In the side view, an edge inside a known limb's capsule may be the limb's.
-        let known = chain.axis == Axis::Z && occluders.iter().any(Option::is_some);
-        let in_limb = |e: usize, side: usize, c: &[Option<(f64, f64)>; 2]| {
-            known
-                && c[side].is_some_and(|(_, t)| {
-                    occluders
-                        .iter()
-                        .flatten()
-                        .any(|o| o.covers(scratch.centres[e], t, OCCLUDER_MARGIN_M))
-                })
-        };
-        // Occlusion only ever adds to a silhouette: an edge that stands out beyond the
-        // part's smooth trend may be an arm's or a hand's in front of the trunk. Without
-        // known limbs every such edge is dropped. With them, the limbs explain the edges
-        // they cover; one that stands out where no limb is (a belly, a bust the candidate
-        // lacks) is the part's own, unless it is a gross outlier of the trend.
-        for side in 0..2 {
-            let sign = if side == 0 { 1.0 } else { -1.0 };
-            scratch.trend_y.clear();
-            scratch.trend_d.clear();
-            for (e, c) in constraints.iter().enumerate() {
-                if let Some((p, t)) = c[side] {
-                    scratch.trend_y.push(scratch.centres[e]);
-                    scratch.trend_d.push(sign * (t - p));
-                }
+    }
+}
+
+/// Drops the edges that are not the part's own: occlusion only ever adds to a
+/// silhouette, so an edge that stands out beyond the part's smooth trend may be an arm's
+/// or a hand's in front of the trunk. Without known limbs every such edge is dropped.
+/// With them (the side view's capsules), the limbs explain the edges they cover; one that
+/// stands out where no limb is (a belly, a bust the candidate lacks) is the part's own,
+/// unless it is a gross outlier of the trend.
+fn drop_foreign_edges(
+    axis: Axis,
+    occluders: &[Option<SideOccluder>],
+    scratch: &mut SectionScratch,
+    constraints: &mut [[Option<(f64, f64)>; 2]],
+) {
+    let known = axis == Axis::Z && occluders.iter().any(Option::is_some);
+    for side in 0..2 {
+        let sign = if side == 0 { 1.0 } else { -1.0 };
+        scratch.trend_y.clear();
+        scratch.trend_d.clear();
+        for (e, c) in constraints.iter().enumerate() {
+            if let Some((p, t)) = c[side] {
+                scratch.trend_y.push(scratch.centres[e]);
+                scratch.trend_d.push(sign * (t - p));
             }
-            let tight = outward_inliers(
+        }
+        let tight = outward_inliers(&scratch.trend_y, &scratch.trend_d, axis.outward_tolerance());
+        // Only with known limbs: the gross-outlier test (no copy of `tight` otherwise).
+        let loose = known.then(|| {
+            outward_inliers(
                 &scratch.trend_y,
                 &scratch.trend_d,
-                chain.axis.outward_tolerance(),
-            );
-            // Only with known limbs: the gross-outlier test (no copy of `tight` otherwise).
-            let loose = known.then(|| {
-                outward_inliers(
-                    &scratch.trend_y,
-                    &scratch.trend_d,
-                    KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M,
-                )
-            });
-            let mut k = 0;
-            for e in 0..constraints.len() {
-                if constraints[e][side].is_some() {
-                    let on_trend = tight.get(k).copied().unwrap_or(true);
-                    let plausible = loose
-                        .as_ref()
-                        .map_or(on_trend, |l| l.get(k).copied().unwrap_or(true));
-                    let keep =
-                        plausible && (on_trend || (known && !in_limb(e, side, &constraints[e])));
-                    if !keep {
-                        constraints[e][side] = None;
-                    }
-                    k += 1;
-                }
+                KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M,
+            )
+        });
+        let mut k = 0;
+        for (e, c) in constraints.iter_mut().enumerate() {
+            let Some((_, t)) = c[side] else { continue };
+            let on_trend = tight.get(k).copied().unwrap_or(true);
+            let plausible = loose
+                .as_ref()
+                .map_or(on_trend, |l| l.get(k).copied().unwrap_or(true));
+            // In the side view, an edge inside a known limb's capsule may be the limb's.
+            let in_limb = known
+                && occluders
+                    .iter()
+                    .flatten()
+                    .any(|o| o.covers(scratch.centres[e], t, OCCLUDER_MARGIN_M));
+            if !(plausible && (on_trend || (known && !in_limb))) {
+                c[side] = None;
             }
+            k += 1;
         }
-        if let Some(raw) = raw_constraints {
-            for (e, (r, c)) in raw.iter().zip(&constraints).enumerate() {
-                let f =
-                    |o: Option<(f64, f64)>| o.map_or("-".to_string(), |(_, t)| format!("{t:.3}"));
-                eprintln!(
-                    "SIDEZ {} y {:.3} front {} kept {} back {} kept {}",
-                    occluders.iter().any(Option::is_some),
-                    scratch.centres[e],
-                    f(r[0]),
-                    f(c[0]),
-                    f(r[1]),
-                    f(c[1])
-                );
+    }
+}
+
+/// `FITSTATION_DEBUG`: the side view's edges per entry of a chain, as found and as kept.
+fn print_side_constraints(
+    occluders: &[Option<SideOccluder>],
+    centres: &[f64],
+    raw: &[[Option<(f64, f64)>; 2]],
+    kept: &[[Option<(f64, f64)>; 2]],
+) {
+    let f = |o: Option<(f64, f64)>| o.map_or("-".to_string(), |(_, t)| format!("{t:.3}"));
+    for (e, (r, c)) in raw.iter().zip(kept).enumerate() {
+        eprintln!(
+            "SIDEZ {} y {:.3} front {} kept {} back {} kept {}",
+            occluders.iter().any(Option::is_some),
+            centres[e],
+            f(r[0]),
+            f(c[0]),
+            f(r[1]),
+            f(c[1])
+        );
+    }
+}
+
+/// The chain's maps from the edges kept: per entry the scale that takes the candidate's
+/// span onto the edges' and the shift that centres it, each smoothed along the chain by a
+/// running median and filled in where the view showed nothing; and per entry the
+/// residual of each edge against its map (the evidence of what the view showed).
+fn fit_maps(
+    constraints: &[[Option<(f64, f64)>; 2]],
+    mids: &[f64],
+    scratch: &mut SectionScratch,
+    out: &mut Vec<Delta>,
+    evidence: &mut Vec<EntryEvidence>,
+) {
+    let m = constraints.len();
+    scratch.raw_scale.clear();
+    scratch
+        .raw_scale
+        .extend(constraints.iter().map(|c| match c {
+            [Some((ph, th)), Some((pl, tl))] if ph - pl > MIN_SPAN_M && th > tl => {
+                Some(((th - tl) / (ph - pl)).clamp(1.0 / MAX_SCALE, MAX_SCALE))
             }
+            _ => None,
+        }));
+    // Scales: running median of the observed ones, filled in from the nearest.
+    running_median(&scratch.raw_scale, &mut scratch.window, &mut scratch.scales);
+    fill(&mut scratch.scales, 1.0);
+    // Shifts (delta at the entry's mid) given the smoothed scale.
+    scratch.raw_shift.clear();
+    for e in 0..m {
+        let s = scratch.scales[e];
+        let c = mids[e];
+        let mut sum = 0.0;
+        let mut n = 0;
+        for (p, t) in constraints[e].iter().flatten() {
+            sum += t - (c + s * (p - c));
+            n += 1;
         }
-        scratch
-            .raw_scale
-            .extend(constraints.iter().map(|c| match c {
-                [Some((ph, th)), Some((pl, tl))] if ph - pl > MIN_SPAN_M && th > tl => {
-                    Some(((th - tl) / (ph - pl)).clamp(1.0 / MAX_SCALE, MAX_SCALE))
-                }
-                _ => None,
-            }));
-        // Scales: running median of the observed ones, filled in from the nearest.
-        running_median(&scratch.raw_scale, &mut scratch.window, &mut scratch.scales);
-        fill(&mut scratch.scales, 1.0);
-        // Shifts (delta at the entry's mid) given the smoothed scale.
-        let mut shift: Vec<Option<f64>> = Vec::with_capacity(m);
-        for e in 0..m {
-            let s = scratch.scales[e];
-            let c = mids[e];
-            let mut sum = 0.0;
-            let mut n = 0;
-            for (p, t) in constraints[e].iter().flatten() {
-                sum += t - (c + s * (p - c));
-                n += 1;
-            }
-            shift.push((n > 0).then(|| sum / n as f64));
-        }
-        let mut smooth_shift = Vec::with_capacity(m);
-        running_median(&shift, &mut scratch.window, &mut smooth_shift);
-        fill(&mut smooth_shift, 0.0);
-        // delta(x) = shift + (s - 1)(x - mid) = alpha + beta x.
-        out.clear();
-        evidence.clear();
-        for e in 0..m {
-            let beta = scratch.scales[e] - 1.0;
-            let d = Delta {
-                alpha: smooth_shift[e] - beta * mids[e],
-                beta,
-                y: scratch.centres[e],
-                mid: mids[e],
-            };
-            out.push(d);
-            evidence.push(EntryEvidence {
-                y: d.y,
-                residual: constraints[e]
-                    .map(|c| c.map_or(f64::NAN, |(p, t)| t - (p + d.alpha + d.beta * p))),
-            });
-        }
+        scratch.raw_shift.push((n > 0).then(|| sum / n as f64));
+    }
+    running_median(&scratch.raw_shift, &mut scratch.window, &mut scratch.shifts);
+    fill(&mut scratch.shifts, 0.0);
+    // delta(x) = shift + (s - 1)(x - mid) = alpha + beta x.
+    out.clear();
+    evidence.clear();
+    for e in 0..m {
+        let beta = scratch.scales[e] - 1.0;
+        let d = Delta {
+            alpha: scratch.shifts[e] - beta * mids[e],
+            beta,
+            y: scratch.centres[e],
+            mid: mids[e],
+        };
+        out.push(d);
+        evidence.push(EntryEvidence {
+            y: d.y,
+            residual: constraints[e]
+                .map(|c| c.map_or(f64::NAN, |(p, t)| t - (p + d.alpha + d.beta * p))),
+        });
     }
 }
 

@@ -193,6 +193,12 @@ pub enum Verdict {
     BlendsIntoBackdrop {
         view: View,
     },
+    /// The person's silhouette changed beyond a still shopper's sway since the last
+    /// frame: someone walking behind the shopper and merging with the outline, or the
+    /// shopper moving. Not measured; the station waits for a still picture.
+    Moving {
+        view: View,
+    },
 }
 
 impl Verdict {
@@ -207,7 +213,8 @@ impl Verdict {
             | Verdict::LegsTogether
             | Verdict::UnderExposed { .. }
             | Verdict::OverExposed { .. }
-            | Verdict::BlendsIntoBackdrop { .. } => true,
+            | Verdict::BlendsIntoBackdrop { .. }
+            | Verdict::Moving { .. } => true,
             Verdict::OffMark { .. } => false,
         }
     }
@@ -250,6 +257,11 @@ impl Verdict {
             Verdict::BlendsIntoBackdrop { view } => format!(
                 "Part of the body blends into the backdrop in the {} camera's picture: \
                  clothing in a colour that stands out from the backdrop is needed to measure.",
+                view.name()
+            ),
+            Verdict::Moving { view } => format!(
+                "The outline moves in the {} camera's picture (someone walking behind, or \
+                 the shopper moving): waiting for a still picture.",
                 view.name()
             ),
             Verdict::OffMark { dx_m, dz_m } => {

@@ -16,7 +16,7 @@
 pub mod cli;
 mod lifting;
 
-use crate::camera::{StationCalibration, View};
+use crate::camera::{Camera, StationCalibration, View};
 use crate::contour::{self, Contour, SilhouetteTarget, SubpixelOptions};
 use crate::imgproc::{Mask, PointUndistorter};
 use crate::landmarks::{
@@ -195,6 +195,8 @@ impl SilhouetteExecutor {
                 // Unreachable (the zone is made at the camera's size); the whole frame
                 // stays zone, the model's default.
             }
+            // The person is whoever stands over the mark; others walk by behind.
+            model.set_standing_box(segment::standing_volume_box(cam, i.width, i.height));
             ViewState {
                 model,
                 undistort: PointUndistorter::new(i),
@@ -317,10 +319,12 @@ impl SilhouetteExecutor {
         Ok(out)
     }
 
-    /// Processes a frame pair into `out`, reusing its buffers (the per-frame path). An
-    /// empty side frame (the side camera gave nothing) leaves the side view out: its mask
-    /// and contour are empty, and the landmarks are lifted from the front view alone onto
-    /// the plane through the mark (z = 0).
+    /// Processes a frame pair into `out`, reusing its buffers (the per-frame path): per
+    /// view the segmentation, the person's outline and its points on the view's plane,
+    /// then the landmarks of both views and the station's verdicts. An empty side frame
+    /// (the side camera gave nothing) leaves the side view out: its mask and contour are
+    /// empty, and the landmarks are lifted from the front view alone onto the plane
+    /// through the mark (z = 0).
     ///
     /// # Errors
     /// As [`SilhouetteExecutor::process`].
@@ -356,74 +360,24 @@ impl SilhouetteExecutor {
                 })?;
             timings.segment_ms += ms(ts);
             let tc = Instant::now();
-            analysis.view = view;
-            analysis.stats = stats;
-            analysis.parts.clear();
-            analysis.landmarks_px.clear();
-            analysis.verdicts.clear();
-            view_verdicts(&stats, view, &self.opts.verdicts, &mut analysis.verdicts);
-            trace_person(
-                state,
-                frame,
-                mask,
-                &stats,
-                &self.opts,
-                &mut analysis.contour,
-            );
-            // The mask from the sub-pixel contour (the refined chain, before its last
-            // resampling): its border on the edge's 50 % level. The holes the segmentation left open (the backdrop seen between an arm and
-            // the trunk) are opened again below, after the fitter's target took the
-            // filled silhouette (its queries measure from the outer contour).
-            state.hole_px.clear();
-            let spans_filled = !analysis.contour.is_empty();
-            if spans_filled {
-                collect_hole_background(state.model.open_holes(), mask, &mut state.hole_px);
-                analysis.stats.person_px = contour::fill_polygon_spans(
-                    &state.resampled,
-                    mask,
-                    &mut state.fill_scratch,
-                    &mut state.target.spans,
-                );
-            }
-            // Plane coordinates (front: z = 0, side: x = 0) and orientation.
-            let cam = self.calib.camera(view);
-            state.normalized.clear();
-            state.normalized.extend(
-                analysis
-                    .contour
-                    .points
-                    .iter()
-                    .map(|&p| state.undistort.normalized(p)),
-            );
-            analysis.plane.clear();
-            let axis = match view {
-                View::Front => lift::PlaneAxis::Z,
-                View::Side => lift::PlaneAxis::X,
-            };
-            analysis.plane.extend(
-                state
-                    .normalized
-                    .iter()
-                    .map(|&n| lift::to_plane(cam, n, axis, 0.0)),
-            );
-            if contour::signed_area2(&analysis.plane) < 0.0 {
-                analysis.plane.reverse();
-                analysis.contour.points.reverse();
-                state.normalized.reverse();
-            }
-            if spans_filled {
-                state.target.rebuild_contour(&analysis.contour);
-            } else {
-                state.target.rebuild(mask, &analysis.contour);
-            }
-            for &i in &state.hole_px {
-                let v = &mut mask.data[i as usize];
-                analysis.stats.person_px -= (*v != 0) as u64;
-                *v = 0;
-            }
+            let spans_filled = outline_view(state, frame, mask, &stats, view, &self.opts, analysis);
+            to_view_plane(state, self.calib.camera(view), view, analysis);
+            rebuild_target(state, mask, spans_filled, analysis);
             timings.contour_ms += ms(tc);
         }
         let tl = Instant::now();
+        self.place_landmarks(out, side_seen);
+        union_verdicts(out);
+        timings.landmarks_ms = ms(tl);
+        timings.total_ms = ms(t0);
+        out.timings = timings;
+        Ok(())
+    }
+
+    /// The landmarks of both views lifted into the station frame, with the trunk's
+    /// asymmetry and its verdict (none without both outlines, unless the side frame was
+    /// not given: `side_seen` false, the front view's alone).
+    fn place_landmarks(&mut self, out: &mut SilhouetteResult, side_seen: bool) {
         out.landmarks.points.clear();
         out.landmarks.verdicts.clear();
         out.landmarks.stature_m = 0.0;
@@ -454,24 +408,109 @@ impl SilhouetteExecutor {
                 .verdicts
                 .push(Verdict::BlendsIntoBackdrop { view: View::Front });
         }
-        // Station verdicts: union of both views', without repeats.
-        let mut all: Vec<Verdict> = Vec::new();
-        for v in out
-            .front
-            .verdicts
-            .iter()
-            .chain(&out.side.verdicts)
-            .chain(&out.landmarks.verdicts)
-        {
-            if !all.contains(v) {
-                all.push(*v);
-            }
+    }
+}
+
+/// Station verdicts: the union of both views' and the landmarks', without repeats.
+fn union_verdicts(out: &mut SilhouetteResult) {
+    let mut all: Vec<Verdict> = Vec::new();
+    for v in out
+        .front
+        .verdicts
+        .iter()
+        .chain(&out.side.verdicts)
+        .chain(&out.landmarks.verdicts)
+    {
+        if !all.contains(v) {
+            all.push(*v);
         }
-        out.landmarks.verdicts = all;
-        timings.landmarks_ms = ms(tl);
-        timings.total_ms = ms(t0);
-        out.timings = timings;
-        Ok(())
+    }
+    out.landmarks.verdicts = all;
+}
+
+/// One view's verdicts and the person's sub-pixel outline, with the mask refilled from
+/// it; returns whether an outline was found (and the mask refilled).
+fn outline_view(
+    state: &mut ViewState,
+    frame: &RgbImage,
+    mask: &mut Mask,
+    stats: &SegmentStats,
+    view: View,
+    opts: &SilhouetteOptions,
+    analysis: &mut ViewAnalysis,
+) -> bool {
+    analysis.view = view;
+    analysis.stats = *stats;
+    analysis.parts.clear();
+    analysis.landmarks_px.clear();
+    analysis.verdicts.clear();
+    view_verdicts(stats, view, &opts.verdicts, &mut analysis.verdicts);
+    trace_person(state, frame, mask, stats, opts, &mut analysis.contour);
+    // The mask from the sub-pixel contour (the refined chain, before its last
+    // resampling): its border on the edge's 50 % level. The holes the segmentation left open (the backdrop seen between an arm and
+    // the trunk) are opened again after the fitter's target took the
+    // filled silhouette (its queries measure from the outer contour): see [`rebuild_target`].
+    state.hole_px.clear();
+    let spans_filled = !analysis.contour.is_empty();
+    if spans_filled {
+        collect_hole_background(state.model.open_holes(), mask, &mut state.hole_px);
+        analysis.stats.person_px = contour::fill_polygon_spans(
+            &state.resampled,
+            mask,
+            &mut state.fill_scratch,
+            &mut state.target.spans,
+        );
+    }
+    spans_filled
+}
+
+/// The outline's points on the view's plane through the mark (front: z = 0, side:
+/// x = 0), oriented to a positive signed area there (the contour and its normalized
+/// points reversed with them).
+fn to_view_plane(state: &mut ViewState, cam: &Camera, view: View, analysis: &mut ViewAnalysis) {
+    state.normalized.clear();
+    state.normalized.extend(
+        analysis
+            .contour
+            .points
+            .iter()
+            .map(|&p| state.undistort.normalized(p)),
+    );
+    analysis.plane.clear();
+    let axis = match view {
+        View::Front => lift::PlaneAxis::Z,
+        View::Side => lift::PlaneAxis::X,
+    };
+    analysis.plane.extend(
+        state
+            .normalized
+            .iter()
+            .map(|&n| lift::to_plane(cam, n, axis, 0.0)),
+    );
+    if contour::signed_area2(&analysis.plane) < 0.0 {
+        analysis.plane.reverse();
+        analysis.contour.points.reverse();
+        state.normalized.reverse();
+    }
+}
+
+/// The fitter's target from the filled silhouette, then the holes the segmentation left
+/// open (the backdrop seen between an arm and the trunk) opened again in the mask.
+fn rebuild_target(
+    state: &mut ViewState,
+    mask: &mut Mask,
+    spans_filled: bool,
+    analysis: &mut ViewAnalysis,
+) {
+    if spans_filled {
+        state.target.rebuild_contour(&analysis.contour);
+    } else {
+        state.target.rebuild(mask, &analysis.contour);
+    }
+    for &i in &state.hole_px {
+        let v = &mut mask.data[i as usize];
+        analysis.stats.person_px -= (*v != 0) as u64;
+        *v = 0;
     }
 }
 

@@ -9,6 +9,7 @@
 //! Units: metres in the station frame, millimetres for measurements, pixels for overlays.
 
 pub mod faults;
+pub mod motion;
 pub mod output;
 pub mod person_masks;
 pub mod pose_change;
@@ -126,6 +127,8 @@ pub struct StationProcessor {
     fitter: Fitter,
     learned: usize,
     smoothed: Vec<SmoothedValue>,
+    /// The previous frame's person masks: a moving outline is not measured.
+    motion: motion::MotionGate,
     /// Per measurement, the per-frame standard deviations from what the views showed
     /// ([`uncertainty::frame_sigma_mm`]), over the same window as the values.
     sigmas: Vec<SmoothedValue>,
@@ -170,6 +173,7 @@ impl StationProcessor {
             fitter,
             learned: 0,
             smoothed: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
+            motion: motion::MotionGate::default(),
             sigmas: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
             counts: FrameCounts::default(),
             last_avatar: None,
@@ -322,6 +326,17 @@ impl StationProcessor {
             self.said_person_masks = true;
             notes.extend(self.person_masks.unavailable.take());
         }
+        // Not measured while the outline moves (someone walking behind, the shopper
+        // moving): see `motion`.
+        let before = result.landmarks.verdicts.len();
+        self.motion.observe(
+            [&result.masks.front, &result.masks.side],
+            &mut result.landmarks.verdicts,
+        );
+        if result.landmarks.verdicts.len() > before && self.person_masks.just_ran() {
+            // The network's map of a moving picture may hold the passer-by: not kept.
+            self.person_masks.retry_soon();
+        }
         let mut s = self.fit_and_measure(pair, side_frame, timer, &result);
         s.messages.extend(notes);
         self.silhouette_result = result;
@@ -407,9 +422,12 @@ impl StationProcessor {
             return s;
         }
         self.counts.with_subject += 1;
+        // While the outline moves, the pose verdicts judge someone else's limbs too: only
+        // the wait is said.
+        let moving = verdicts.iter().any(|v| matches!(v, Verdict::Moving { .. }));
         let blocking: Vec<String> = verdicts
             .iter()
-            .filter(|v| v.blocks_fit())
+            .filter(|v| v.blocks_fit() && (!moving || matches!(v, Verdict::Moving { .. })))
             .map(|v| v.message())
             .collect();
         if !blocking.is_empty() {
@@ -617,6 +635,7 @@ impl FrameProcessor for StationProcessor {
         self.pose.clear();
         self.side_limbs.reset();
         self.person_masks.reset(&mut self.silhouettes);
+        self.motion.reset();
     }
 }
 

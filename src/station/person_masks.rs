@@ -22,7 +22,7 @@ use crate::camera::{Camera, StationCalibration, View};
 use crate::landmarks::Verdict;
 use crate::person::{FrameRef, PersonModel, PersonOutput, Roi, SelfieSegmenter};
 use crate::segment::fusion::PersonPrior;
-use crate::segment::PixelBox;
+use crate::segment::{standing_volume_box, PixelBox};
 use crate::silhouette::{SilhouetteExecutor, SilhouetteResult};
 use glam::DVec3;
 
@@ -42,10 +42,6 @@ const MIN_PIECES_HEIGHT: f64 = 0.4;
 const FEET_MARGIN: f64 = 0.03;
 /// Someone is in view when a view's largest component has this many pixels.
 const SOMEONE_PX: u64 = 1500;
-/// The standing volume over the mark, metres: half width (x), height, half depth (z).
-const VOLUME_HALF_X_M: f64 = 0.6;
-const VOLUME_HEIGHT_M: f64 = 2.2;
-const VOLUME_HALF_Z_M: f64 = 0.5;
 
 /// The selfie network and when it last ran for the current subject.
 pub struct PersonMasks {
@@ -113,6 +109,19 @@ impl PersonMasks {
     pub fn expire(&mut self) {
         if self.since.is_some() {
             self.since = Some(EVERY_FRAMES);
+        }
+    }
+
+    /// Whether the network ran on the current frame.
+    pub fn just_ran(&self) -> bool {
+        self.since == Some(0)
+    }
+
+    /// Makes the network run again [`RETRY_FRAMES`] frames from now: its map of this
+    /// frame is not to be kept (someone walking behind the shopper was in it).
+    pub fn retry_soon(&mut self) {
+        if self.since.is_some() {
+            self.since = Some(EVERY_FRAMES.saturating_sub(RETRY_FRAMES));
         }
     }
 
@@ -196,31 +205,6 @@ fn refused(result: &SilhouetteResult) -> bool {
                 | Verdict::BlendsIntoBackdrop { .. }
         )
     })
-}
-
-/// The pixel box of the standing volume over the mark in a `w x h` frame (clipped), or
-/// None when it is out of view.
-fn standing_volume_box(camera: &Camera, w: u32, h: u32) -> Option<PixelBox> {
-    let mut lo = [f64::INFINITY; 2];
-    let mut hi = [f64::NEG_INFINITY; 2];
-    for sx in [-1.0, 1.0] {
-        for y in [0.0, VOLUME_HEIGHT_M] {
-            for sz in [-1.0, 1.0] {
-                let p = DVec3::new(sx * VOLUME_HALF_X_M, y, sz * VOLUME_HALF_Z_M);
-                if let Some(px) = camera.project(p) {
-                    lo = [lo[0].min(px.x), lo[1].min(px.y)];
-                    hi = [hi[0].max(px.x), hi[1].max(px.y)];
-                }
-            }
-        }
-    }
-    let b = PixelBox {
-        min_x: lo[0].clamp(0.0, w as f64) as u32,
-        min_y: lo[1].clamp(0.0, h as f64) as u32,
-        max_x: hi[0].ceil().clamp(0.0, w as f64) as u32,
-        max_y: hi[1].ceil().clamp(0.0, h as f64) as u32,
-    };
-    (b.min_x < b.max_x && b.min_y < b.max_y).then_some(b)
 }
 
 /// The box fed to the network: the person's pieces inside the standing volume, down to

@@ -1,0 +1,169 @@
+//! Unit tests of the evaluation: scoring, aggregates, the text table and sets.
+
+use super::*;
+
+fn row(subject: &str, errors: &[(&str, Option<f64>)]) -> EvalRow {
+    EvalRow {
+        subject: subject.into(),
+        measurements: errors
+            .iter()
+            .map(|&(name, e)| MeasurementCompare {
+                name: name.into(),
+                true_mm: 800.0,
+                fitted_mm: e.map(|e| 800.0 + e),
+                error_mm: e,
+                pm_mm: Some(8.0),
+            })
+            .collect(),
+        surface: None,
+        mask_iou: BTreeMap::new(),
+        landmarks: LandmarkErrors::default(),
+        body_landmarks: LandmarkErrors::default(),
+        timings_ms: BTreeMap::new(),
+        profile: Vec::new(),
+        settled_step_mm: BTreeMap::new(),
+        frames: None,
+    }
+}
+
+#[test]
+fn sets_side_by_side_shows_each_sets_mae_bias_and_worst() {
+    let a = EvalTable {
+        rows: vec![
+            row(
+                "subject_00",
+                &[("chest_girth", Some(4.0)), ("hip_girth", Some(-2.0))],
+            ),
+            row(
+                "subject_01",
+                &[("chest_girth", Some(-10.0)), ("hip_girth", Some(6.0))],
+            ),
+        ],
+        failures: vec!["subject_02: no frame".into()],
+    };
+    let b = EvalTable {
+        rows: vec![row("subject_00", &[("chest_girth", Some(30.0))])],
+        failures: Vec::new(),
+    };
+    let t = sets_side_by_side(&[("library".into(), a), ("ansur".into(), b)]);
+    let chest = t
+        .lines()
+        .find(|l| l.starts_with("chest_girth"))
+        .expect("chest row");
+    assert!(chest.contains("7.0 / -3.0 / -10.0"), "{chest}");
+    assert!(chest.contains("30.0 / +30.0 / +30.0"), "{chest}");
+    let hip = t
+        .lines()
+        .find(|l| l.starts_with("hip_girth"))
+        .expect("hip row");
+    assert!(
+        hip.contains("4.0 / +2.0 / +6.0") && hip.trim_end().ends_with('-'),
+        "{hip}"
+    );
+    // Each chest row is given ±8: 4 mm is within it, -10 mm is not.
+    let cover = t
+        .lines()
+        .filter(|l| l.starts_with("chest_girth"))
+        .nth(1)
+        .expect("cover row");
+    assert!(
+        cover.contains("1/2 / 8.0") && cover.contains("0/1 / 8.0"),
+        "{cover}"
+    );
+    let fitted = t
+        .lines()
+        .find(|l| l.starts_with("subjects"))
+        .expect("count row");
+    assert!(
+        fitted.contains("2 of 3") && fitted.contains("1 of 1"),
+        "{fitted}"
+    );
+}
+
+#[test]
+fn a_set_lists_the_recordings_with_truth_and_bad_specs_are_said() {
+    let dir = std::env::temp_dir().join(format!("fitstation_evalset_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    for d in [
+        "subject_01",
+        "subject_01.truth",
+        "subject_00",
+        "subject_00.truth",
+        "notes",
+    ] {
+        std::fs::create_dir_all(dir.join(d)).expect("mkdir");
+    }
+    let set = parse_set(&format!("lib={}", dir.display())).expect("set");
+    assert_eq!(set.name, "lib");
+    assert_eq!(
+        set.recordings,
+        vec![dir.join("subject_00"), dir.join("subject_01")]
+    );
+    assert!(parse_set("nodir").is_err());
+    assert!(parse_set(&format!("empty={}", dir.join("notes").display())).is_err());
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn worst_girth_is_the_largest_girth_error_of_the_set() {
+    let table = EvalTable {
+        rows: vec![
+            row(
+                "a",
+                &[
+                    ("chest_girth", Some(4.0)),
+                    ("waist_girth", Some(-9.5)),
+                    // Not tape girths: never the worst girth.
+                    ("stature", Some(40.0)),
+                    ("hip_girth_max", Some(-30.0)),
+                ],
+            ),
+            row(
+                "b",
+                &[
+                    ("thigh_girth_left", Some(9.0)),
+                    ("hip_girth", None),
+                    ("thigh_girth_right", Some(-12.25)),
+                ],
+            ),
+        ],
+        failures: Vec::new(),
+    };
+    let w = table.worst_girth().expect("a worst girth");
+    assert_eq!(
+        (w.name.as_str(), w.subject.as_str(), w.error_mm),
+        ("thigh_girth_right", "b", -12.25)
+    );
+    assert_eq!(w.fitted_mm, 800.0 - 12.25);
+    let text = table.to_text();
+    assert!(
+        text.contains(
+            "worst single girth error of the set: -12.2 mm (thigh_girth_right, subject b"
+        ),
+        "{text}"
+    );
+    let html = super::html::report(&table, &[]);
+    assert!(
+        html.contains("thigh_girth_right, subject b"),
+        "no worst girth in the HTML"
+    );
+    assert!(EvalTable::default().worst_girth().is_none());
+}
+
+#[test]
+fn truth_landmark_names_map_to_the_stations() {
+    assert_eq!(station_landmark_name("left_armpit"), "armpit_left");
+    assert_eq!(station_landmark_name("right_acromion"), "acromion_right");
+    assert_eq!(station_landmark_name("crotch"), "crotch");
+    assert_eq!(station_landmark_name("head_top"), "head_top");
+    // Every such name is one the station writes.
+    use crate::landmarks::LandmarkName::*;
+    for (n, l) in [
+        ("left_armpit", ArmpitLeft),
+        ("right_armpit", ArmpitRight),
+        ("left_acromion", AcromionLeft),
+        ("right_acromion", AcromionRight),
+    ] {
+        assert_eq!(station_landmark_name(n), l.as_str());
+    }
+}

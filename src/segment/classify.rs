@@ -1,0 +1,275 @@
+//! The coarse grid of a frame (see the module docs of [`super`]): the frame's exposure
+//! gain, the colour test of every second pixel of every second row against the model,
+//! and the bridging of shadow-like cells of a leg into the person.
+
+use super::{
+    keep_out_box, luma8, BackgroundModel, ExposureStats, BRIDGED, CLIP_HIGH_LUMA, CLIP_LOW_LUMA,
+    COARSE, MAX_GAIN, MIN_GAIN, NO_RUN, WEAK,
+};
+
+impl BackgroundModel {
+    /// The frame's exposure gain against the model: the median brightness ratio
+    /// `alpha = I.E / |E|^2` over a sparse grid of pixels away from the person's last box
+    /// whose colour is the model's up to brightness (low chromaticity distortion), not
+    /// clipped. Exposure flicker and drift scale the whole backdrop; the person covers a
+    /// minority of the sample, and the chromaticity gate drops most of it. Without enough
+    /// samples, or when the estimate is implausible for an exposure change, the gain is 1.
+    pub(super) fn estimate_gain(&mut self, raw: &[u8]) -> f32 {
+        const MIN_SAMPLES: usize = 64;
+        let (w, h) = (self.width as usize, self.height as usize);
+        // About a thousand samples or more, at most every 16th pixel (3600 at 720p).
+        let step = (((w * h) as f64 / 1024.0).sqrt() as usize).clamp(1, 16);
+        let keep_out = self.last_box.map(keep_out_box);
+        self.gain_samples.clear();
+        let ck2 = self.opts.chroma_k * self.opts.chroma_k;
+        for y in (step / 2..h).step_by(step) {
+            for x in (step / 2..w).step_by(step) {
+                if let Some((x0, y0, x1, y1)) = keep_out {
+                    if x >= x0 && x < x1 && y >= y0 && y < y1 {
+                        continue;
+                    }
+                }
+                let i = y * w + x;
+                let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
+                if p.iter().any(|&v| v >= CLIP_HIGH_LUMA || v <= CLIP_LOW_LUMA) {
+                    continue;
+                }
+                let m = self.px[i];
+                let e = m.color();
+                let ee = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+                if ee < 400.0 {
+                    continue; // too dark a model for a ratio
+                }
+                let pe = p[0] as f32 * e[0] + p[1] as f32 * e[1] + p[2] as f32 * e[2];
+                let alpha = pe / ee;
+                let c = [0, 1, 2].map(|k| p[k] as f32 - alpha * e[k]);
+                if c[0] * c[0] + c[1] * c[1] + c[2] * c[2] > ck2 * m.radius2() {
+                    continue;
+                }
+                self.gain_samples.push(alpha);
+            }
+        }
+        if self.gain_samples.len() < MIN_SAMPLES {
+            return 1.0;
+        }
+        let mid = self.gain_samples.len() / 2;
+        let (_, &mut g, _) = self
+            .gain_samples
+            .select_nth_unstable_by(mid, f32::total_cmp);
+        if (MIN_GAIN..=MAX_GAIN).contains(&g) {
+            g
+        } else {
+            1.0
+        }
+    }
+
+    /// Labels every cell of the coarse grid against the model at gain `g`: foreground
+    /// ([`crate::imgproc::MASK_ON`]), changed but explained as shadow or exposure
+    /// ([`WEAK`]), or unchanged (0); returns the exposure statistics of the cells' colours.
+    ///
+    /// One coarse row at a time is gathered into packed 32-bit colours, then tested
+    /// branch-free (the compiler vectorises it).
+    pub(super) fn classify_coarse(&mut self, raw: &[u8], g: f32) -> ExposureStats {
+        let (w, _, cw, ch) = self.grid();
+        self.coarse.clear();
+        self.coarse.resize(cw * ch, 0);
+        self.row_rgb.resize(cw, 0);
+        let (mut luma_sum, mut hi, mut lo) = (0u64, 0u64, 0u64);
+        let o = self.opts;
+        let ck2 = o.chroma_k * o.chroma_k;
+        // Brightness bounds about the frame's exposure gain g: alpha = 1 + d.E/|E|^2 is
+        // compared with g * bound, so d.E is compared with (g * bound - 1) |E|^2.
+        let gm1 = g - 1.0;
+        let (klo_zone, klo_lit, khi) = (
+            g * o.shadow_min_brightness - 1.0,
+            g * o.lit_min_brightness - 1.0,
+            g * o.highlight_max_brightness - 1.0,
+        );
+        let klo_step = klo_zone - klo_lit;
+        let inv_g = 1.0 / g;
+        for cy in 0..ch {
+            let y = cy * COARSE as usize;
+            let row = &raw[3 * y * w..3 * (y + 1) * w];
+            let rgb = &mut self.row_rgb;
+            gather_coarse_row(row, rgb);
+            // Exposure statistics (integer, vectorised).
+            let (mut sum, mut n_hi, mut n_lo) = (0u32, 0u32, 0u32);
+            for &v in rgb.iter() {
+                let (r, g, b) = (v & 0xff, (v >> 8) & 0xff, v >> 16);
+                let l = luma8(r, g, b);
+                sum += l;
+                n_hi += (l >= CLIP_HIGH_LUMA as u32) as u32;
+                n_lo += (l <= CLIP_LOW_LUMA as u32) as u32;
+            }
+            luma_sum += sum as u64;
+            hi += n_hi as u64;
+            lo += n_lo as u64;
+            let m = &self.coarse_model;
+            let span = cy * cw..(cy + 1) * cw;
+            let out = &mut self.coarse[span.clone()];
+            let it = out
+                .iter_mut()
+                .zip(rgb.iter())
+                .zip(
+                    m.er[span.clone()]
+                        .iter()
+                        .zip(&m.eg[span.clone()])
+                        .zip(&m.eb[span.clone()]),
+                )
+                .zip(m.tau2[span.clone()].iter().zip(&m.zone[span]));
+            for (((o, &v), ((&er, &eg), &eb)), (&tau2, &zone)) in it {
+                let (r, g, b) = (v & 0xff, (v >> 8) & 0xff, v >> 16);
+                // Integer differences and dot products (exact), f32 for the products.
+                let (er, eg, eb) = (er as i32, eg as i32, eb as i32);
+                let (dr, dg, db) = (r as i32 - er, g as i32 - eg, b as i32 - eb);
+                let dd = (dr * dr + dg * dg + db * db) as f32;
+                let de = (dr * er + dg * eg + db * eb) as f32;
+                let ee = (er * er + eg * eg + eb * eb) as f32;
+                let tau2 = tau2 as f32;
+                let zone = zone as f32; // 1 in the shadow zone, else 0
+                let klo = klo_lit + zone * klo_step;
+                let chroma_ee = dd * ee - de * de;
+                // In the shadow zone the chromaticity tolerance scales with the brightness
+                // ratio (see `chroma_k`): (alpha / g) |E|^2, at most |E|^2.
+                let lit_ee = ee + zone * (((ee + de) * inv_g).clamp(0.0, ee) - ee);
+                // |I - gE|^2 = |d - (g-1)E|^2
+                let dg2 = dd - 2.0 * gm1 * de + gm1 * gm1 * ee;
+                let cand = dg2 > tau2;
+                let fg = cand
+                    & ((chroma_ee * ee > ck2 * tau2 * lit_ee * lit_ee)
+                        | (de < klo * ee)
+                        | (de > khi * ee));
+                // 255: foreground; 1: changed, but explained as shadow or exposure (WEAK).
+                *o = (fg as u8).wrapping_neg() | (cand as u8) << 1;
+            }
+        }
+        ExposureStats::from_counts(luma_sum, hi, lo, cw * ch)
+    }
+
+    /// Lets the learned person prior ([`super::fusion`]) decide the cells the backdrop is
+    /// unsure of; returns the pixels it made person.
+    pub(super) fn fuse_person_prior(&mut self, raw: &[u8]) -> u64 {
+        let (_, _, cw, _) = self.grid();
+        let (mut coarse, mut scratch) = (
+            std::mem::take(&mut self.coarse),
+            std::mem::take(&mut self.fuse_scratch),
+        );
+        let fused = self.fuse_coarse(raw, &mut coarse, cw, &mut scratch);
+        (self.coarse, self.fuse_scratch) = (coarse, scratch);
+        fused * (COARSE * COARSE) as u64
+    }
+
+    /// Promotes the shadow-like cells of a leg in trousers of the floor's hue into the
+    /// person (see [`bridge_columns`]), when the options ask for it.
+    pub(super) fn bridge_shadowed_columns(&mut self) {
+        if !self.opts.bridge_columns {
+            return;
+        }
+        let (_, _, cw, ch) = self.grid();
+        bridge_columns(
+            &mut self.coarse,
+            &self.coarse_model.zone,
+            cw,
+            ch,
+            self.zone_everywhere,
+            &mut self.column_top,
+            &mut self.column_anchored,
+        );
+    }
+}
+
+/// Promotes WEAK cells that lie in a column between two foreground cells, with only
+/// changed cells between them, to BRIDGED (foreground), when the column's unbroken run
+/// of changed cells above them holds a foreground cell outside the shadow zone (`zone`,
+/// one flag per coarse cell, 1 in the zone); other WEAK cells stay WEAK (even, so
+/// background to the majority filter).
+///
+/// A standing person is a vertical figure: where legs in trousers of the floor's own hue
+/// cross the floor's image they look like their own cast shadow (darker, same chroma),
+/// but they hang from the clearly changed thighs, seen against the backdrop above the
+/// zone, down to the shoes. A floor shadow beside the feet has no foreground above it in
+/// its column; the floor seen through the gap between the legs ends in unchanged (lit)
+/// floor before anything below; and the shadowed floor between the two feet of a side
+/// view lies under the far foot, which stands inside the zone with lit floor above it.
+/// Without a calibration the whole frame is zone and the anchor is not asked for.
+pub(super) fn bridge_columns(
+    coarse: &mut [u8],
+    zone: &[u8],
+    cw: usize,
+    ch: usize,
+    zone_everywhere: bool,
+    top: &mut Vec<u32>,
+    anchored: &mut Vec<bool>,
+) {
+    const CHUNK: usize = 16;
+    top.clear();
+    top.resize(cw, NO_RUN);
+    anchored.clear();
+    anchored.resize(cw, false);
+    for cy in 0..ch {
+        let row = cy * cw;
+        let mut cx = 0;
+        while cx < cw {
+            // Most of a frame is unchanged: close the runs of a whole chunk at once.
+            if cx % CHUNK == 0 {
+                let end = (cx + CHUNK).min(cw);
+                if coarse[row + cx..row + end].iter().all(|&v| v == 0) {
+                    top[cx..end].fill(NO_RUN);
+                    anchored[cx..end].fill(false);
+                    cx = end;
+                    continue;
+                }
+            }
+            match coarse[row + cx] {
+                0 => {
+                    top[cx] = NO_RUN;
+                    anchored[cx] = false;
+                }
+                WEAK => {}
+                _ => {
+                    let t = top[cx];
+                    if t != NO_RUN && (t as usize) + 1 < cy && (anchored[cx] || zone_everywhere) {
+                        for y in t as usize + 1..cy {
+                            coarse[y * cw + cx] = BRIDGED;
+                        }
+                    }
+                    top[cx] = cy as u32;
+                    anchored[cx] |= zone[row + cx] == 0;
+                }
+            }
+            cx += 1;
+        }
+    }
+}
+
+/// The colours of every second pixel of an RGB row, packed red in the low byte
+/// (`out[k]` is pixel `2k`); `out` holds `ceil(pixels / 2)` values.
+const _: () = assert!(COARSE == 2, "gather_coarse_row takes every second pixel");
+pub(super) fn gather_coarse_row(row: &[u8], rgb: &mut [u32]) {
+    let cw = rgb.len();
+    // Four cells (24 bytes) from three 64-bit loads.
+    let quads = row.chunks_exact(24);
+    let done = (4 * quads.len()).min(cw);
+    for (v, q) in rgb.chunks_exact_mut(4).zip(quads) {
+        let word = |k: usize| {
+            let mut b = [0u8; 8];
+            b.copy_from_slice(&q[8 * k..8 * k + 8]);
+            u64::from_le_bytes(b)
+        };
+        let (a, b, c) = (word(0), word(1), word(2));
+        const C: u64 = 0x00ff_ffff;
+        v[0] = (a & C) as u32;
+        v[1] = (((a >> 48) | (b << 16)) & C) as u32;
+        v[2] = ((b >> 32) & C) as u32;
+        v[3] = ((c >> 16) & C) as u32;
+    }
+    // The rest cell by cell, then an odd last pixel if any.
+    let cells = row[(6 * done).min(row.len())..].chunks_exact(6);
+    let last = cells.remainder();
+    for (v, p) in rgb[done..].iter_mut().zip(cells) {
+        *v = u32::from_le_bytes([p[0], p[1], p[2], 0]);
+    }
+    if let ([pr, pg, pb, ..], Some(v)) = (last, rgb.last_mut()) {
+        *v = u32::from_le_bytes([*pr, *pg, *pb, 0]);
+    }
+}

@@ -1,0 +1,166 @@
+//! A second person walking behind the shopper (issue 20): `synth-set --passer-by`
+//! renders one, and the station neither stops for it nor measures it.
+
+use fitstation::camera::View;
+use fitstation::recording::{FrameFormat, Recording};
+use fitstation::synth::{load_truth, render_recording, set_member, truth_dir, SynthConfig};
+use std::path::{Path, PathBuf};
+
+/// A development-range subject (seeds 20500+; never a judgement seed).
+const FIRST_SEED: u64 = 20500;
+const SET_COUNT: usize = 4;
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("fitstation-passer-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+fn config(member: usize, passer_by: bool, subject_frames: usize) -> SynthConfig {
+    let mut cfg = set_member(FIRST_SEED, member, SET_COUNT);
+    cfg.empty_frames = 10;
+    cfg.subject_frames = subject_frames;
+    cfg.format = FrameFormat::Png;
+    cfg.passer_by = passer_by;
+    cfg
+}
+
+fn frame(rec: &Path, view: View, k: usize) -> image::RgbImage {
+    image::open(rec.join(view.name()).join(format!("{k:06}.png")))
+        .expect("frame")
+        .to_rgb8()
+}
+
+fn truth_mask(rec: &Path, view: View, k: usize) -> Vec<u8> {
+    image::open(
+        truth_dir(rec)
+            .join("masks")
+            .join(view.name())
+            .join(format!("{k:06}.png")),
+    )
+    .expect("mask")
+    .to_luma8()
+    .into_raw()
+}
+
+/// Pixels that differ between two frames by more than the film's noise could make.
+fn changed_px(a: &image::RgbImage, b: &image::RgbImage) -> usize {
+    a.pixels()
+        .zip(b.pixels())
+        .filter(|(p, q)| (0..3).any(|c| p[c].abs_diff(q[c]) > 40))
+        .count()
+}
+
+#[test]
+fn the_passer_by_is_in_the_pictures_and_not_in_the_truth() {
+    let dir = tmp("synth");
+    let (plain, walked) = (dir.join("plain"), dir.join("walked"));
+    render_recording(&config(0, false, 3), &plain).expect("render");
+    render_recording(&config(0, true, 3), &walked).expect("render");
+    let truth = load_truth(&truth_dir(&walked)).expect("truth");
+    let path = truth
+        .passer_by
+        .expect("the passer-by's path is in truth.json");
+    assert!(path.z_m <= -0.5 && path.from_x_m > path.to_x_m, "{path:?}");
+    assert!(load_truth(&truth_dir(&plain))
+        .expect("truth")
+        .passer_by
+        .is_none());
+    assert_eq!(
+        Recording::open(&walked).expect("recording").len(),
+        Recording::open(&plain).expect("recording").len()
+    );
+    for view in View::BOTH {
+        // The empty frames (the backdrop is learned on them) have nobody.
+        assert_eq!(
+            changed_px(&frame(&plain, view, 5), &frame(&walked, view, 5)),
+            0
+        );
+        for k in 10..13 {
+            // The truth is the subject's alone ...
+            assert_eq!(truth_mask(&plain, view, k), truth_mask(&walked, view, k));
+        }
+    }
+    // ... while the pictures show someone else walking by.
+    let seen: usize = (10..13)
+        .map(|k| {
+            changed_px(
+                &frame(&plain, View::Front, k),
+                &frame(&walked, View::Front, k),
+            )
+        })
+        .sum();
+    assert!(
+        seen > 5_000,
+        "the passer-by covers {seen} px of the front frames"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// What the station reported for a recording: its report.json.
+fn replay(rec: &Path) -> serde_json::Value {
+    use fitstation::cli::{run_offline, RecordingSource};
+    use fitstation::station::{default_library, StationOptions, StationProcessor};
+    let mut src = RecordingSource::open(rec).expect("open the recording");
+    let calib = src.recording().calibration().clone();
+    let library = default_library().expect("shape library");
+    let mut station =
+        StationProcessor::new(calib, library, StationOptions::default()).expect("station");
+    run_offline(&mut src, &mut station, None, false).report
+}
+
+/// Girths may differ by this much between the subject replayed alone and with the
+/// passer-by, mm: the passer-by's frames are not measured, so fewer frames settle the
+/// values (dev subjects 20500-20505 moved by 0-10 mm, one waist by 25).
+const MAX_GIRTH_CHANGE_MM: f64 = 12.0;
+
+#[test]
+fn a_person_walking_behind_neither_stops_the_fit_nor_is_measured() {
+    let dir = tmp("station");
+    let (plain, walked) = (dir.join("plain"), dir.join("walked"));
+    render_recording(&config(0, false, 12), &plain).expect("render");
+    render_recording(&config(0, true, 12), &walked).expect("render");
+    let alone = replay(&plain);
+    let with = replay(&walked);
+    let messages = with["messages"].to_string();
+    eprintln!(
+        "frames alone {} / with the passer-by {}",
+        alone["frames"], with["frames"]
+    );
+    eprintln!("messages: {messages}");
+    // Fitted on the still frames before and after the walk ...
+    let fitted = with["frames"]["fitted"].as_u64().unwrap_or(0);
+    assert!(fitted >= 4, "only {fitted} frames fitted");
+    // ... not on those where the passer-by merged with the outline ...
+    assert!(
+        fitted < alone["frames"]["fitted"].as_u64().unwrap_or(0),
+        "every frame was measured, the passer-by's too"
+    );
+    assert!(
+        messages.contains("waiting for a still picture"),
+        "{messages}"
+    );
+    // ... and never taken for a second shopper in the booth.
+    assert!(!messages.contains("More than one person"), "{messages}");
+    for key in [
+        "chest_girth",
+        "waist_girth",
+        "hip_girth",
+        "thigh_girth_left",
+        "thigh_girth_right",
+    ] {
+        let a = alone["measurements_mm"][key]
+            .as_f64()
+            .expect("measured alone");
+        let b = with["measurements_mm"][key]
+            .as_f64()
+            .expect("measured with the passer-by");
+        eprintln!("{key}: alone {a:.1}, with the passer-by {b:.1} mm");
+        assert!(
+            (a - b).abs() <= MAX_GIRTH_CHANGE_MM,
+            "{key}: {a:.1} mm alone, {b:.1} mm with someone walking behind"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
