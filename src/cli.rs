@@ -5,11 +5,14 @@ use crate::camera::StationCalibration;
 use crate::capture::inject::FaultInjector;
 use crate::deform::DecoderKind;
 use crate::fit::correspond::Variant;
+use crate::fit::deformer::DeformerKind;
 use crate::pipeline::timing::TimingStats;
 use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, FrameSource, Phase, SourceError};
 use crate::recording::{Recording, RecordingWriter};
 use crate::station::output::write_fit_outputs;
-use crate::station::{default_library, StationOptions, StationProcessor, MEASUREMENT_KEYS};
+use crate::station::{
+    default_library, StationOptions, StationProcessor, ViewSet, MEASUREMENT_KEYS,
+};
 use anyhow::{bail, Context};
 use std::path::{Path, PathBuf};
 
@@ -32,6 +35,13 @@ pub struct FitCliOptions {
     /// shape alone).
     #[arg(long)]
     pub no_person_model: bool,
+    /// Views to fit from: both cameras, or the front camera alone (depths from the shape
+    /// library, a wider ±; give --stature-mm for the best stature).
+    #[arg(long, value_enum, default_value = "both")]
+    pub views: ViewSet,
+    /// Deformer of the fit: mean value (the paper's) or Laplacian.
+    #[arg(long, value_enum, default_value = "mvc")]
+    pub deformer: DeformerKind,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
@@ -53,6 +63,8 @@ impl FitCliOptions {
         }
         o.fit.variant = self.correspondence;
         o.person_model = !self.no_person_model;
+        o.views = self.views;
+        o.fit.deformer = self.deformer;
         o.fit.decoder = match self.decoder {
             DecoderChoice::Fast => DecoderKind::FastGaussNewton,
             DecoderChoice::Paper => DecoderKind::PaperIterative,
@@ -365,8 +377,13 @@ pub fn run_offline(
         }
         timings.add(ONCE_PER_RUN_STAGE, t0.elapsed().as_secs_f64() * 1e3);
     }
+    // The views the reported values were fitted from (`["front"]`: the side view was
+    // missing or not used, and the uncertainties are the one-view ones).
+    let views: Vec<&str> = proc_.views().map_or(&[][..], |v| v.names()).to_vec();
     let report = serde_json::json!({
         "measurements_mm": meas,
+        "views": views,
+        "deformer": proc_.options().fit.deformer,
         "frames": proc_.counts,
         "timings_ms": timings.to_json(),
         "stability_mm": stab,
@@ -651,8 +668,10 @@ fn print_table(report: &serde_json::Value) {
 pub struct FitArgs {
     #[arg(long)]
     pub front: PathBuf,
+    /// The side photo; without it the fit is made from the front view alone (give
+    /// --stature-mm: the stature from one view is less sure).
     #[arg(long)]
-    pub side: PathBuf,
+    pub side: Option<PathBuf>,
     #[arg(long)]
     pub calib: PathBuf,
     /// Empty-scene image of the front camera.
@@ -675,10 +694,46 @@ pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
     let calib = StationCalibration::load(&args.calib)
         .with_context(|| format!("cannot read calibration {}", args.calib.display()))?;
     let front = load_rgb(&args.front)?;
-    let side = load_rgb(&args.side)?;
     calib.check_frame_size(crate::camera::View::Front, front.width(), front.height())?;
-    calib.check_frame_size(crate::camera::View::Side, side.width(), side.height())?;
     let mut opts = args.fit.station_options()?;
+    let Some(side_path) = &args.side else {
+        // A front photo alone: the side frames are empty (not seen).
+        if args.side_bg.is_some() {
+            bail!("--side-bg without --side");
+        }
+        opts.views = ViewSet::Front;
+        opts.backdrop_frames = 1;
+        let fb = match &args.front_bg {
+            Some(fb) => load_rgb(fb)?,
+            None => {
+                opts.silhouette.segment.adapt_rate = 0.0;
+                crate::segment::backdrop_from_border(&front)
+            }
+        };
+        let none = || image::RgbImage::new(0, 0);
+        let pairs = vec![
+            FramePair {
+                index: 0,
+                timestamp_s: 0.0,
+                front: fb,
+                side: none(),
+            },
+            FramePair {
+                index: 1,
+                timestamp_s: 0.0,
+                front,
+                side: none(),
+            },
+        ];
+        let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
+        let mut source = VecSource {
+            pairs: pairs.into_iter(),
+        };
+        let summary = run_offline(&mut source, &mut proc_, None, false);
+        return finish(summary, Some(&args.out), args.fit.json);
+    };
+    let side = load_rgb(side_path)?;
+    calib.check_frame_size(crate::camera::View::Side, side.width(), side.height())?;
     let pairs: Vec<FramePair> = match (&args.front_bg, &args.side_bg) {
         (Some(fb), Some(sb)) => {
             opts.backdrop_frames = 1;
@@ -766,6 +821,13 @@ pub struct EvalCmd {
     /// segmentation's: what is left is the fit's own error, the rest the segmentation's.
     #[arg(long, conflicts_with = "baseline")]
     pub truth_masks: bool,
+    /// Views to fit from: both cameras, or the front camera alone (one-camera fitting,
+    /// scored against the same truth).
+    #[arg(long, value_enum, default_value = "both")]
+    pub views: ViewSet,
+    /// Deformer of the fit: mean value (the paper's) or Laplacian.
+    #[arg(long, value_enum, default_value = "mvc")]
+    pub deformer: DeformerKind,
 }
 
 /// The scratch folder of a recording's station masks during `fitstation eval`.
@@ -813,6 +875,8 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
     let mut opts = StationOptions::default();
     opts.fit.variant = cmd.correspondence;
     opts.person_model = !cmd.no_person_model;
+    opts.views = cmd.views;
+    opts.fit.deformer = cmd.deformer;
     let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
         let mut src = RecordingSource::open(rec)?;
         let calib = src.recording().calibration().clone();

@@ -226,10 +226,13 @@ fn corrupt_files_are_reported_not_panicked_on() {
     std::fs::write(dir2.join("front/000002.png"), b"not a png").unwrap();
     std::fs::remove_file(dir2.join("side/000004.png")).unwrap();
     let mut r = Recording::open(&dir2).unwrap();
-    assert_eq!(r.len(), 5);
+    // The frame without its side frame is a front-only pair (a lost side camera), said.
+    assert_eq!(r.len(), 6);
     assert!(r.warnings().iter().any(|w| w.contains("000004")));
     assert!(r.frame_pair(2).is_err());
     assert!(r.frame_pair(3).is_ok());
+    let (front4, side4) = r.frame_pair(4).unwrap();
+    assert!(front4.width() > 0 && side4.width() == 0);
     assert!(r.warnings().len() >= 2);
     let _ = std::fs::remove_dir_all(&dir);
     let _ = std::fs::remove_dir_all(&dir2);

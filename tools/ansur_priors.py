@@ -8,7 +8,12 @@ standard deviation (mm) of
          cannot see;
   depth: depth regressed on breadth, stature, weight and sex: how far the depth can be
          from what the rest of the body says, i.e. a depth the side view did not show;
-  breadth: the same for the breadth (an extent the front view did not show).
+  breadth: the same for the breadth (an extent the front view did not show);
+  front-only depth: how far real people's depth lies from what breadth and stature alone
+         say (no weight, no sex: a front camera and a typed stature), about ANSUR's own
+         line and about the shape library's (tools/library_extents.csv): the depth the
+         station takes from its library when the side view is missing (one-camera fits,
+         station/uncertainty.rs `depth_prior_one_view_mm`).
 Usage: python3 tools/ansur_priors.py [ANSUR_DIR]   (numpy only)
 """
 import csv, os, sys
@@ -53,3 +58,32 @@ for name, circ, breadth, depth in [
     print(f"{name:8} {shape:9.1f} {dsd:9.1f} {bsd:11.1f}          {shape / c.mean():.4f}")
 t = col("thighcircumference")
 print(f"{'thigh':8} {resid_sd(t, stature, weight, sex, col('buttockcircumference')):9.1f}   (girth from stature, weight, sex and buttock girth: no thigh breadth or depth in ANSUR)")
+print()
+# One view: the depth the station cannot see comes from its shape library (the body
+# chosen by the front widths and the stature), so what matters is how far real people's
+# depths lie from the library's depth-given-breadth-and-stature line. The library's
+# breadths and depths are its trunk sections' extents at the measurement levels
+# (tools/library_extents.csv, from `cargo test --release library_extents_csv --
+# --ignored --nocapture`); ANSUR II's are caliper measures at its own landmarks, so the
+# two differ by an offset of definitions (the mean, printed) that is not a person's
+# spread: the spread is the standard deviation about the library's line.
+lib_path = os.path.join(here, "library_extents.csv")
+with open(lib_path, newline="") as f:
+    lib = list(csv.DictReader(f))
+lc = lambda n: np.array([float(d[n]) for d in lib])
+print(f"front view alone (breadths and stature seen, depth unseen): {len(lib)} library bodies")
+print(f"{'girth':8} {'sd about ANSUR line':>20} {'sd about library line':>22} {'offset':>8}   (mm)")
+for name, breadth, depth in [
+    ("chest", "chestbreadth", "chestdepth"),
+    ("waist", "waistbreadth", "waistdepth"),
+    ("hip", "hipbreadth", "buttockdepth"),
+]:
+    a = np.column_stack([np.ones(len(lib)), lc(breadth), lc("stature")])
+    coef, *_ = np.linalg.lstsq(a, lc(depth), rcond=None)
+    r = col(depth) - np.column_stack([np.ones(len(data)), col(breadth), stature]) @ coef
+    print(f"{name:8} {resid_sd(col(depth), col(breadth), stature):20.1f} {r.std():22.1f} {r.mean():+8.1f}")
+# No thigh breadth or depth in ANSUR: the thigh girth's spread given what a front view
+# shows nearby (hip breadth, stature), all of it taken as the unseen depth's:
+# girth sd / (pi/2).
+tg = resid_sd(t, col("hipbreadth"), stature)
+print(f"{'thigh':8} {tg / (np.pi / 2):20.1f}   (thigh girth sd given hip breadth and stature, {tg:.1f} mm, over pi/2)")

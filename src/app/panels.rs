@@ -138,6 +138,14 @@ impl StationApp {
             ui.separator();
         }
         ui.heading("Measurements");
+        // Fitted from one camera: said where the values are (their ± is the wider one).
+        if let Some(m) = self.current.as_ref().and_then(|s| {
+            s.messages
+                .iter()
+                .find(|m| *m == crate::station::ONE_VIEW_MESSAGE)
+        }) {
+            ui.label(RichText::new(m).color(egui::Color32::from_rgb(230, 160, 40)));
+        }
         let measurements: Vec<MeasurementValue> = self
             .current
             .as_ref()

@@ -13,6 +13,9 @@
 //! - `stall`: the source blocks, no frame at all for the duration (frames are lost).
 //! - `drop-front` / `drop-side`: one camera delivers nothing; the source says the
 //!   camera is lost ([`SourceError::Disconnected`]) for each frame time.
+//! - `cut-side`: the side camera lost for longer than the stall timeout: as the live
+//!   source then does ([`super::DevicePairSource`]), the front frames go on alone, as
+//!   front-only pairs (an empty side frame), which the station fits from the front view.
 //! - `reorder`: consecutive pairs are delivered swapped (k+1 before k).
 //! - `duplicate`: every pair is delivered twice.
 //! - `corrupt-front` / `corrupt-side`: the camera's frame is random bytes.
@@ -49,6 +52,8 @@ pub enum FaultKind {
     Stall,
     /// One camera delivers nothing.
     Drop(View),
+    /// The side camera is gone for long: front-only pairs.
+    CutSide,
     /// Pairs delivered swapped in twos.
     Reorder,
     /// Every pair delivered twice.
@@ -68,6 +73,7 @@ impl FaultKind {
         match self {
             FaultKind::Stall => "stall".into(),
             FaultKind::Drop(view) => format!("drop-{}", v(view)),
+            FaultKind::CutSide => "cut-side".into(),
             FaultKind::Reorder => "reorder".into(),
             FaultKind::Duplicate => "duplicate".into(),
             FaultKind::Corrupt(view) => format!("corrupt-{}", v(view)),
@@ -84,6 +90,7 @@ impl FaultKind {
     fn touches(&self, view: View) -> bool {
         match self {
             FaultKind::Drop(v) | FaultKind::Corrupt(v) | FaultKind::Resize(v) => *v == view,
+            FaultKind::CutSide => view == View::Side,
             FaultKind::Exposure { view: v, .. } => v.is_none_or(|v| v == view),
             _ => false,
         }
@@ -121,7 +128,7 @@ pub struct SpecError {
 pub const SPEC_HELP: &str = "Inject faults into the frame source: a comma-separated list of \
 KIND[=GAIN]@START:DURATION, times in seconds of the recording (e.g. \
 'drop-side@4:2,stall@8:1.5,exposure=1.8@12:0.5'). KIND is stall, drop-front, drop-side, \
-reorder, duplicate, corrupt-front, corrupt-side, resize-front, resize-side, exposure, \
+cut-side (front-only pairs, the side camera lost for long), reorder, duplicate, corrupt-front, corrupt-side, resize-front, resize-side, exposure, \
 exposure-front or exposure-side (GAIN: brightness factor of exposure faults, default 1.8).";
 
 /// Reads a fault schedule: `KIND[=GAIN]@START:DURATION[,...]` (see [`SPEC_HELP`]).
@@ -197,6 +204,7 @@ fn fault_kind(name: &str, gain: Option<f64>) -> Option<FaultKind> {
         "stall" => FaultKind::Stall,
         "drop-front" => FaultKind::Drop(View::Front),
         "drop-side" => FaultKind::Drop(View::Side),
+        "cut-side" => FaultKind::CutSide,
         "reorder" => FaultKind::Reorder,
         "duplicate" => FaultKind::Duplicate,
         "corrupt-front" => FaultKind::Corrupt(View::Front),
@@ -349,6 +357,18 @@ impl FaultInjector {
         active: &[FaultKind],
     ) -> Result<Option<FramePair>, SourceError> {
         let t = pair.timestamp_s;
+        if active.contains(&FaultKind::CutSide) {
+            self.matcher.clear();
+            let index = self.formed;
+            self.formed += 1;
+            let front = self.damage(View::Front, pair.front, active);
+            return Ok(Some(FramePair {
+                index,
+                timestamp_s: t,
+                front,
+                side: RgbImage::new(0, 0),
+            }));
+        }
         let dropped = |v: View| active.contains(&FaultKind::Drop(v));
         if !dropped(View::Front) {
             let f = self.damage(View::Front, pair.front, active);

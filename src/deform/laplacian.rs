@@ -7,10 +7,12 @@
 //! it after skinning has matched the pose, for the small remaining corrections. Metres.
 
 use super::solver::{
-    component_anchor_candidates, components, fixed_with_anchors, Constraints, NormalEquations,
-    RowSystem,
+    component_anchor_candidates, components, fixed_with_anchors, Constraints, Engine,
+    NormalEquations, ReducedSystem, RowSystem,
 };
-use super::{check_solve_inputs, control_mask, DecodeOptions, DecodeReport, DeformError};
+use super::{
+    check_solve_inputs, control_mask, DecodeOptions, DecodeReport, DeformError, SymbolicReuse,
+};
 use crate::mesh::{OneRings, TriMesh};
 use glam::DVec3;
 
@@ -27,7 +29,14 @@ pub struct LaplacianDeformer {
     anchor_candidates: Vec<Vec<u32>>,
     fixed: Vec<bool>,
     anchors: Vec<u32>,
-    system: NormalEquations,
+    /// The linear engine, chosen as the fast mean value decoder chooses it: with hard
+    /// constraints and per-control-set analysis, the system of the free vertices only
+    /// (the fit fixes most of the trunk, so it is small).
+    system: Engine,
+    /// The cotangent rows (for the residual of a solve).
+    rows: RowSystem,
+    /// The engine is factored for the current controls.
+    factored: bool,
     delta: Vec<DVec3>,
 }
 
@@ -105,7 +114,13 @@ impl LaplacianDeformer {
                 .map(|(&c, &k)| k * rest.positions[c as usize])
                 .sum();
         }
-        let system = NormalEquations::new(rows)?;
+        let hard = !opts.constraint_weight.is_finite();
+        let system = match opts.symbolic {
+            SymbolicReuse::PerControlSet if hard => {
+                Engine::Reduced(ReducedSystem::new(rows.clone()))
+            }
+            _ => Engine::Full(NormalEquations::new(rows.clone())?),
+        };
         let component = components(&rings);
         let anchor_candidates = component_anchor_candidates(&component, &rest.positions);
         let mut d = LaplacianDeformer {
@@ -118,9 +133,13 @@ impl LaplacianDeformer {
             fixed: Vec::new(),
             anchors: Vec::new(),
             system,
+            rows,
+            factored: false,
             delta: vec![DVec3::ZERO; n],
         };
-        d.set_controls(&[])?;
+        // No controls yet: the anchors only; factored when first solved (a reduced
+        // engine's analysis of the whole mesh would be wasted on the caller's controls).
+        d.fix_controls(&[])?;
         Ok(d)
     }
 
@@ -130,6 +149,12 @@ impl LaplacianDeformer {
     /// # Errors
     /// An index out of range or listed twice; a failed factorisation.
     pub fn set_controls(&mut self, controls: &[u32]) -> Result<(), DeformError> {
+        self.fix_controls(controls)?;
+        self.factor()
+    }
+
+    /// Takes the controls and the anchors of uncontrolled parts, unfactored.
+    fn fix_controls(&mut self, controls: &[u32]) -> Result<(), DeformError> {
         let mask = control_mask(controls, self.rest_delta.len())?;
         self.controls.clear();
         self.controls.extend_from_slice(controls);
@@ -141,12 +166,20 @@ impl LaplacianDeformer {
             &mut self.fixed,
             &mut self.anchors,
         );
+        self.factored = false;
+        Ok(())
+    }
+
+    /// Factors the engine for the current fixed vertices.
+    fn factor(&mut self) -> Result<(), DeformError> {
         let mode = if self.opts.constraint_weight.is_finite() {
             Constraints::Weighted(self.opts.constraint_weight)
         } else {
             Constraints::Hard
         };
-        self.system.factor(&self.fixed, mode)
+        self.system.factor(&self.fixed, mode)?;
+        self.factored = true;
+        Ok(())
     }
 
     /// Solves with `targets` (one per control), writing into `positions` (whose values
@@ -161,6 +194,9 @@ impl LaplacianDeformer {
     ) -> Result<DecodeReport, DeformError> {
         let n = self.rest_delta.len();
         check_solve_inputs(targets, self.controls.len(), positions.len(), n)?;
+        if !self.factored {
+            self.factor()?;
+        }
         for (&c, t) in self.controls.iter().zip(targets) {
             positions[c as usize] = *t;
         }
@@ -175,7 +211,7 @@ impl LaplacianDeformer {
         if !max_move.is_finite() {
             return Err(DeformError::Diverged(1));
         }
-        let rows = self.system.rows();
+        let rows = &self.rows;
         let mut residual = 0.0f64;
         for v in 0..n {
             if self.fixed[v] {

@@ -173,10 +173,6 @@ impl NormalEquations {
         })
     }
 
-    pub(crate) fn rows(&self) -> &RowSystem {
-        &self.rows
-    }
-
     /// Assembles and factors `A` for the fixed set `fixed` (controls and anchors) under
     /// `mode`. Rows of fixed vertices are left out (their vertices are not free).
     pub(crate) fn factor(&mut self, fixed: &[bool], mode: Constraints) -> Result<(), DeformError> {

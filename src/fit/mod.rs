@@ -9,7 +9,8 @@
 //! 3. **Correspondence** ([`correspond`]): control vertices with left/right/front/back
 //!    status and their targets on the silhouettes, either variant.
 //! 4. **Refit**: the mean value deformer moves the controls to their targets while every
-//!    other vertex keeps its mean value encoding; head, hands and feet are then put back
+//!    other vertex keeps its mean value encoding (or its Laplacian coordinate, with
+//!    [`deformer::DeformerKind::Laplacian`]); head, hands and feet are then put back
 //!    rigidly (best rigid fit of their rest shape).
 //!
 //! Later frames warm-start: same candidate and controls, new targets, a warm solve.
@@ -17,6 +18,8 @@
 //! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
 
 pub mod correspond;
+pub mod deformer;
+pub mod one_view;
 pub mod parts;
 pub mod pose;
 pub mod sections;
@@ -24,9 +27,10 @@ pub mod shape;
 
 use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
 use crate::camera::StationCalibration;
-use crate::deform::{DecodeOptions, DecoderKind, MvcDeformer};
+use crate::deform::{DecodeOptions, DecoderKind};
 use crate::mesh::TriMesh;
 use correspond::{ControlSet, MaskRef, Part, SearchOptions, TargetStats, Variant};
+use deformer::{DeformerKind, FitDeformer};
 use glam::DVec3;
 use std::sync::Arc;
 
@@ -56,6 +60,9 @@ const PLACEMENT_MAX_LEAN: f64 = 0.02;
 #[derive(Debug, Clone)]
 pub struct FitOptions {
     pub variant: Variant,
+    /// The deformer of the refit (mean value, the default, or Laplacian).
+    pub deformer: DeformerKind,
+    /// The mean value deformer's decoder.
     pub decoder: DecoderKind,
     /// Refine the candidate's macro parameters (Gauss-Newton) after the library search.
     pub refine_shape: bool,
@@ -80,6 +87,7 @@ impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
             variant: Variant::PerspectiveRim,
+            deformer: DeformerKind::Mvc,
             decoder: DecoderKind::FastGaussNewton,
             refine_shape: true,
             shape_iterations: 8,
@@ -110,6 +118,10 @@ pub struct Observation {
     /// not taken as theirs. All None when unknown (the trunk's own smooth trend then
     /// tells occluders apart, see [`sections`]).
     pub side_occluders: [Option<sections::SideOccluder>; sections::MAX_SIDE_OCCLUDERS],
+    /// The stature was lifted from the front view alone onto the plane z = this (no
+    /// side view, no typed stature): a fit without the side view moves it to the head's
+    /// depth ([`one_view`]). None: typed, or seen by both views.
+    pub stature_plane_z: Option<f64>,
 }
 
 impl Observation {
@@ -122,6 +134,7 @@ impl Observation {
             arm_angles: None,
             leg_angles: None,
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
+            stature_plane_z: None,
         }
     }
 }
@@ -158,7 +171,7 @@ struct SubjectState {
     /// Dense section targets' plan, and its vertices that are not sparse controls.
     plan: Option<sections::SectionPlan>,
     dense: Vec<u32>,
-    deformer: MvcDeformer,
+    deformer: FitDeformer,
     rest: TriMesh,
     /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
     pinned: Vec<u32>,
@@ -186,6 +199,9 @@ pub struct Fitter {
     vertex_targets: Vec<Option<DVec3>>,
     /// Rasterised silhouette of the candidate (first fit only).
     raster: Vec<u8>,
+    /// The library bodies' mean depths relative to their toes (a fit without the side
+    /// view places the trunk by them, [`one_view`]).
+    depth_offsets: Option<one_view::DepthOffsets>,
 }
 
 impl Fitter {
@@ -199,12 +215,19 @@ impl Fitter {
         let mut library_descriptors = Vec::with_capacity(opts.library_size);
         let mut buf = Vec::new();
         let edges = shape::unique_edges(&template.mesh.triangles);
+        let mut offsets = Vec::with_capacity(opts.library_size);
         for seed in 0..opts.library_size as u64 {
             let p = ShapeLibrary::sample_adult(seed);
             library.body_into(&p, &mut buf);
             library_descriptors.push(shape::mesh_descriptor(&buf, &edges, &template_labels));
             library_params.push(p);
+            let stature = buf.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+            offsets.extend(
+                shape::torso_centre(&buf, &edges, &template_labels, PLACEMENT_LEVEL * stature)
+                    .and_then(|c| one_view::DepthOffsets::of_body(&buf, c)),
+            );
         }
+        let depth_offsets = one_view::DepthOffsets::mean(&offsets);
         let pose_joints = pose::PoseJoints::new(template);
         let rigid = pose::rigid_groups(template);
         Ok(Fitter {
@@ -224,6 +247,7 @@ impl Fitter {
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
             vertex_targets: Vec::new(),
             raster: Vec::new(),
+            depth_offsets,
         })
     }
 
@@ -259,7 +283,38 @@ impl Fitter {
         side: MaskRef<'_>,
         obs: &Observation,
     ) -> Result<(&[DVec3], FitStats), FitError> {
-        let views = [(&calib.front, front), (&calib.side, side)];
+        self.fit_views(calib, front, Some(side), obs)
+    }
+
+    /// [`Fitter::fit`] with the side view optional. Without it (the side camera lost, or
+    /// a front photo alone) the fit goes by the front view and the stature: the library
+    /// body is chosen and refined on the front widths alone, so its depths are the shape
+    /// library's for a body of those widths and that stature (the library's prior of
+    /// what is not seen), and the side view's controls hold the candidate's positions (no
+    /// target: the section maps leave z as the candidate's). A warm refit without the
+    /// side view keeps the depths of the last frames that saw it.
+    pub fn fit_views(
+        &mut self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        side: Option<MaskRef<'_>>,
+        obs: &Observation,
+    ) -> Result<(&[DVec3], FitStats), FitError> {
+        // An empty side mask: every side-view search starts outside it and finds nothing.
+        let unseen = MaskRef {
+            width: 0,
+            height: 0,
+            data: &[],
+        };
+        let views = [(&calib.front, front), (&calib.side, side.unwrap_or(unseen))];
+        let placed;
+        let obs = match side {
+            Some(_) => obs,
+            None => {
+                placed = self.place_in_depth(calib, front, obs);
+                &placed
+            }
+        };
         self.side_occluders = obs.side_occluders;
         let warm = self.subject.is_some();
         let mut stats = FitStats {
@@ -292,6 +347,15 @@ impl Fitter {
                 } else {
                     None
                 };
+                let fitted = match (fitted, side) {
+                    // The fitted avatar's depths are the candidate's when no view saw
+                    // them: the next choice goes by what was seen.
+                    (Some(mut d), None) => {
+                        d.torso_depth.iter_mut().for_each(|x| *x = f64::NAN);
+                        Some(d)
+                    }
+                    (d, _) => d,
+                };
                 self.first_fit(calib, front, side, obs, fitted.as_ref())?;
                 let t1 = std::time::Instant::now();
                 self.rounds(views, false, rounds, &mut stats)?;
@@ -322,6 +386,40 @@ impl Fitter {
         stats.controls = s.controls.controls.len();
         stats.params = Some(s.params.clone());
         Ok((&s.positions, stats))
+    }
+
+    /// Without the side view: the trunk placed in depth behind the toes the front view
+    /// sees on the floor, by the library's mean proportions, and a stature lifted from
+    /// the front view moved to the head's depth ([`one_view`]). The observation as it
+    /// was when the feet are not seen.
+    fn place_in_depth(
+        &self,
+        calib: &StationCalibration,
+        front: MaskRef<'_>,
+        obs: &Observation,
+    ) -> Observation {
+        let (Some(toes), Some(d)) = (
+            one_view::toes_on_floor(&calib.front, front),
+            self.depth_offsets,
+        ) else {
+            return *obs;
+        };
+        let mut o = *obs;
+        let (toes_z, believed) = d.believed_toes_z(toes.z, obs.stature_m);
+        if let Some(plane_z) = obs.stature_plane_z {
+            // The head's depth depends on the stature only through the offset: one step.
+            let head_z = toes_z + d.head_top_rel * obs.stature_m;
+            o.stature_m = one_view::height_at_depth(&calib.front, obs.stature_m, plane_z, head_z);
+            o.stature_plane_z = None;
+        }
+        o.torso_point.z = toes_z + d.trunk_rel * o.stature_m;
+        if debug_enabled() {
+            eprintln!(
+                "one view: toes {toes:?} (believed: {believed}), trunk z {:.4}, stature {:.4} -> {:.4}",
+                o.torso_point.z, obs.stature_m, o.stature_m
+            );
+        }
+        o
     }
 
     /// Correspondence and decoding rounds on the current subject state.
@@ -439,12 +537,12 @@ impl Fitter {
         &mut self,
         calib: &StationCalibration,
         front: MaskRef<'_>,
-        side: MaskRef<'_>,
+        side: Option<MaskRef<'_>>,
         obs: &Observation,
         fitted: Option<&shape::ShapeDescriptor>,
     ) -> Result<(), FitError> {
         let f = (&calib.front, front);
-        let sd = (&calib.side, side);
+        let sd = side.map(|s| (&calib.side, s));
         let observed = match fitted {
             Some(d) => d.clone(),
             None => shape::observed_descriptor(f, sd, obs.stature_m, obs.torso_point),
@@ -578,7 +676,7 @@ impl Fitter {
             max_iterations: DECODE_ITERATIONS_PER_SOLVE,
             ..DecodeOptions::default()
         };
-        let mut deformer = MvcDeformer::new(&body, self.opts.decoder, dopts)
+        let mut deformer = FitDeformer::new(self.opts.deformer, &body, self.opts.decoder, dopts)
             .map_err(|e| FitError::Deform(e.to_string()))?;
         deformer
             .set_controls(&indices)

@@ -170,6 +170,21 @@ pub fn torso_centre(
     (hi.x > lo.x).then(|| DVec3::new(0.5 * (lo.x + hi.x), y, 0.5 * (lo.z + hi.z)))
 }
 
+/// Breadth (x extent) and depth (z extent) of the trunk's cross-section (torso and
+/// legs) at height `y`, metres.
+pub fn trunk_extents(
+    positions: &[DVec3],
+    edges: &[[u32; 2]],
+    labels: &[Part],
+    y: f64,
+) -> Option<(f64, f64)> {
+    let (lo, hi) = section_extents(positions, edges, labels, &[y], is_trunk)
+        .first()
+        .copied()
+        .flatten()?;
+    (hi.x > lo.x).then(|| (hi.x - lo.x, hi.z - lo.z))
+}
+
 /// Where the silhouette is left when walking from `start` along `dir` (station frame),
 /// or None when `start` is not inside the silhouette or no boundary is within `reach_m`.
 pub fn silhouette_exit(
@@ -211,10 +226,11 @@ pub fn silhouette_exit(
 }
 
 /// The centre of the silhouettes' cross-section at height `y`: iterates between the two
-/// views (x from the front, z from the side) starting at `guess`.
+/// views (x from the front, z from the side) starting at `guess`. Without a side view
+/// the depth is NaN and z stays the guess's.
 pub fn section_centre(
     front: (&Camera, MaskRef<'_>),
-    side: (&Camera, MaskRef<'_>),
+    side: Option<(&Camera, MaskRef<'_>)>,
     y: f64,
     guess: DVec3,
 ) -> Option<(DVec3, f64, f64)> {
@@ -227,6 +243,9 @@ pub fn section_centre(
         let r = silhouette_exit(front.0, front.1, c, DVec3::NEG_X, REACH_M)?;
         c.x = 0.5 * (l.x + r.x);
         width = l.x - r.x;
+        let Some(side) = side else {
+            continue;
+        };
         let f = silhouette_exit(side.0, side.1, c, DVec3::Z, REACH_M)?;
         let b = silhouette_exit(side.0, side.1, c, DVec3::NEG_Z, REACH_M)?;
         c.z = 0.5 * (f.z + b.z);
@@ -235,12 +254,14 @@ pub fn section_centre(
     Some((c, width, depth))
 }
 
-/// The observed descriptor from the two silhouettes. `stature_m` is the subject's
+/// The observed descriptor from the two silhouettes (without a side view, the depths are
+/// NaN: unobserved, so the library search and the shape refinement go by the widths and
+/// the stature alone, and the library's bodies supply the depth that goes with them). `stature_m` is the subject's
 /// stature, `centre` a point inside the torso (from landmarks, or the mark), `crotch_x`
 /// the x of the crotch and `thigh_offset_m` the thigh centres' distance from it.
 pub fn observed_descriptor(
     front: (&Camera, MaskRef<'_>),
-    side: (&Camera, MaskRef<'_>),
+    side: Option<(&Camera, MaskRef<'_>)>,
     stature_m: f64,
     centre: DVec3,
 ) -> ShapeDescriptor {

@@ -26,7 +26,22 @@ pub struct FramePair {
     /// Capture time in seconds from the start of the source.
     pub timestamp_s: f64,
     pub front: RgbImage,
+    /// The side frame; an empty (0 x 0) image when the side camera gave nothing for this
+    /// moment (lost, or a recording whose side folder stops early): the station then fits
+    /// from the front view alone ([`FramePair::has_side`]).
     pub side: RgbImage,
+}
+
+impl FramePair {
+    /// False when the side camera gave no frame for this pair (an empty `side`).
+    pub fn has_side(&self) -> bool {
+        has_frame(&self.side)
+    }
+}
+
+/// False for the empty image that stands for a frame a camera did not give.
+pub fn has_frame(img: &RgbImage) -> bool {
+    img.width() > 0 && img.height() > 0
 }
 
 /// Why a source could not give a frame pair.

@@ -184,7 +184,8 @@ pub enum FrameFormat {
 enum Source {
     Folder {
         front: Vec<PathBuf>,
-        side: Vec<PathBuf>,
+        /// None where the side folder has no frame of that index (side camera lost).
+        side: Vec<Option<PathBuf>>,
     },
     Video {
         front: Box<Mp4VideoReader>,
@@ -249,14 +250,20 @@ impl Recording {
             let s = list_frames(&sd)?;
             let mut front = Vec::new();
             let mut side = Vec::new();
+            let mut front_only: Vec<u64> = Vec::new();
             for (k, p) in &f {
-                match s.get(k) {
-                    Some(q) => {
-                        front.push(p.clone());
-                        side.push(q.clone());
-                    }
-                    None => warnings.push(format!("frame {k:06}: front only, skipped")),
+                front.push(p.clone());
+                side.push(s.get(k).cloned());
+                if !s.contains_key(k) {
+                    front_only.push(*k);
                 }
+            }
+            if let Some(first) = front_only.first() {
+                // A lost side camera: those pairs are fitted from the front view alone.
+                warnings.push(format!(
+                    "{} frames from {first:06} on have no side frame: read as front-only pairs",
+                    front_only.len()
+                ));
             }
             for k in s.keys().filter(|k| !f.contains_key(k)) {
                 warnings.push(format!("frame {k:06}: side only, skipped"));
@@ -329,7 +336,9 @@ impl Recording {
         &self.warnings
     }
 
-    /// The k-th frame pair (front, side), checked against the calibration's sizes.
+    /// The k-th frame pair (front, side), checked against the calibration's sizes. In a
+    /// folder recording whose side folder lacks frame k (the side camera was lost), the
+    /// side image is empty (0 x 0, see [`crate::pipeline::FramePair::has_side`]).
     ///
     /// # Errors
     /// Out of range, unreadable or undecodable frame, or a size that does not match
@@ -348,10 +357,19 @@ impl Recording {
             return Err(RecordingError::OutOfRange { k, len });
         }
         let (front, side) = match &mut self.source {
-            Source::Folder { front, side } => (load_image(&front[k])?, load_image(&side[k])?),
+            Source::Folder { front, side } => (
+                load_image(&front[k])?,
+                match &side[k] {
+                    Some(p) => load_image(p)?,
+                    None => RgbImage::new(0, 0),
+                },
+            ),
             Source::Video { front, side, .. } => (front.frame(k)?, side.frame(k)?),
         };
         for (view, img) in [(View::Front, &front), (View::Side, &side)] {
+            if !crate::pipeline::has_frame(img) && view == View::Side {
+                continue;
+            }
             self.calibration
                 .check_frame_size(view, img.width(), img.height())?;
         }

@@ -239,13 +239,15 @@ impl SilhouetteExecutor {
                 view: "front",
                 source: e,
             })?;
-        self.side
-            .model
-            .learn(side)
-            .map_err(|e| LandmarkError::Segment {
-                view: "side",
-                source: e,
-            })?;
+        if crate::pipeline::has_frame(side) {
+            self.side
+                .model
+                .learn(side)
+                .map_err(|e| LandmarkError::Segment {
+                    view: "side",
+                    source: e,
+                })?;
+        }
         Ok(())
     }
 
@@ -303,11 +305,15 @@ impl SilhouetteExecutor {
         }
     }
 
+    /// Checks the frames' sizes; an empty side frame (the side camera gave nothing) is
+    /// allowed: that view is then left out.
     fn check(&self, front: &RgbImage, side: &RgbImage) -> Result<(), LandmarkError> {
         self.calib
             .check_frame_size(View::Front, front.width(), front.height())?;
-        self.calib
-            .check_frame_size(View::Side, side.width(), side.height())?;
+        if crate::pipeline::has_frame(side) {
+            self.calib
+                .check_frame_size(View::Side, side.width(), side.height())?;
+        }
         Ok(())
     }
 
@@ -327,7 +333,10 @@ impl SilhouetteExecutor {
 
     /// Processes a frame pair into `out`, reusing its buffers (the per-frame path): per
     /// view the segmentation, the person's outline and its points on the view's plane,
-    /// then the landmarks of both views and the station's verdicts.
+    /// then the landmarks of both views and the station's verdicts. An empty side frame
+    /// (the side camera gave nothing) leaves the side view out: its mask and contour are
+    /// empty, and the landmarks are lifted from the front view alone onto the plane
+    /// through the mark (z = 0).
     ///
     /// # Errors
     /// As [`SilhouetteExecutor::process`].
@@ -340,7 +349,15 @@ impl SilhouetteExecutor {
         self.check(front, side)?;
         let t0 = Instant::now();
         let mut timings = SilhouetteTimings::default();
+        let side_seen = crate::pipeline::has_frame(side);
         for view in View::BOTH {
+            if view == View::Side && !side_seen {
+                out.side = ViewAnalysis::empty(View::Side);
+                out.masks.side.width = 0;
+                out.masks.side.height = 0;
+                out.masks.side.data.clear();
+                continue;
+            }
             let (state, frame, analysis, mask) = match view {
                 View::Front => (&mut self.front, front, &mut out.front, &mut out.masks.front),
                 View::Side => (&mut self.side, side, &mut out.side, &mut out.masks.side),
@@ -368,7 +385,7 @@ impl SilhouetteExecutor {
             timings.contour_ms += ms(tc);
         }
         let tl = Instant::now();
-        self.place_landmarks(out);
+        self.place_landmarks(out, side_seen);
         union_verdicts(out);
         timings.landmarks_ms = ms(tl);
         timings.total_ms = ms(t0);
@@ -377,13 +394,16 @@ impl SilhouetteExecutor {
     }
 
     /// The landmarks of both views lifted into the station frame, with the trunk's
-    /// asymmetry and its verdict (none without both outlines).
-    fn place_landmarks(&mut self, out: &mut SilhouetteResult) {
+    /// asymmetry and its verdict (none without both outlines, unless the side frame was
+    /// not given: `side_seen` false, the front view's alone).
+    fn place_landmarks(&mut self, out: &mut SilhouetteResult, side_seen: bool) {
         out.landmarks.points.clear();
         out.landmarks.verdicts.clear();
         out.landmarks.stature_m = 0.0;
         out.landmarks.trunk_asymmetry = None;
-        if !out.front.contour.is_empty() && !out.side.contour.is_empty() {
+        // Without a side frame the side axis is empty and the front view's points are
+        // lifted onto z = 0.
+        if !out.front.contour.is_empty() && (!out.side.contour.is_empty() || !side_seen) {
             let ff = analyse_front(&out.front.plane);
             out.landmarks.trunk_asymmetry =
                 analysis::trunk_asymmetry(&out.front.plane, &ff, &mut self.crossings);

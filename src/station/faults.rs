@@ -23,7 +23,7 @@
 
 use super::StationProcessor;
 use crate::camera::{StationCalibration, View};
-use crate::pipeline::{FitSnapshot, FramePair, Phase};
+use crate::pipeline::{has_frame, FitSnapshot, FramePair, Phase};
 use crate::silhouette::SilhouetteExecutor;
 use image::RgbImage;
 use std::sync::Arc;
@@ -154,6 +154,9 @@ impl FaultMonitor {
     /// Adds a backdrop frame pair to the exposure reference.
     fn learn_reference(&mut self, pair: &FramePair) {
         for (k, frame) in [&pair.front, &pair.side].into_iter().enumerate() {
+            if !has_frame(frame) {
+                continue; // a camera that gave nothing (a front-only pair)
+            }
             sample_luma(frame, &mut self.luma);
             let r = &mut self.reference[k];
             if r.len() != self.luma.len() || self.reference_frames == 0 {
@@ -177,6 +180,9 @@ impl FaultMonitor {
             .into_iter()
             .enumerate()
         {
+            if !has_frame(frame) {
+                continue;
+            }
             sample_luma(frame, &mut self.luma);
             let Some(ratio) =
                 exposure_ratio(&self.luma, &self.reference[k], self.reference_frames as f32)
@@ -245,6 +251,9 @@ fn missing_time((index, t_s): (u64, f64), pair: &FramePair) -> Option<f64> {
 /// A frame whose size is not its camera's.
 fn wrong_size(pair: &FramePair, calib: &StationCalibration) -> Option<String> {
     for (view, f) in [(View::Front, &pair.front), (View::Side, &pair.side)] {
+        if view == View::Side && !has_frame(f) {
+            continue; // the side camera gave nothing: a front-only pair
+        }
         if let Err(e) = calib.check_frame_size(view, f.width(), f.height()) {
             return Some(format!(
                 "Corrupt {} frame ({e}): skipped, last measurements kept",

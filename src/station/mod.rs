@@ -44,6 +44,32 @@ pub const MEASUREMENT_KEYS: [&str; 6] = [
     "thigh_girth_right",
 ];
 
+/// The views the station fits from (`--views`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ViewSet {
+    /// Both cameras (a pair without a side frame is still fitted from the front alone).
+    #[default]
+    Both,
+    /// The front camera alone: the side frames are not looked at (the evaluation of
+    /// one-camera fitting, a front photo with a typed stature).
+    Front,
+}
+
+impl ViewSet {
+    /// The names of the views, as `report.json` `views` lists them.
+    pub fn names(self) -> &'static [&'static str] {
+        match self {
+            ViewSet::Both => &["front", "side"],
+            ViewSet::Front => &["front"],
+        }
+    }
+}
+
+/// Said on screen and in the report while the station fits from the front view alone.
+pub const ONE_VIEW_MESSAGE: &str = "No side view: measuring from the front camera alone \
+     (depths from the shape library, wider ±)";
+
 /// Options of the station processor.
 #[derive(Debug, Clone)]
 pub struct StationOptions {
@@ -67,6 +93,9 @@ pub struct StationOptions {
     /// `DIR/{front,side}/NNNNNN.png` (a synthetic recording's true masks) instead of the
     /// segmentation; a pair without them is segmented as usual.
     pub truth_masks: Option<std::path::PathBuf>,
+    /// The views to fit from; with [`ViewSet::Both`] a pair without a side frame (the
+    /// side camera lost) is fitted from the front view alone.
+    pub views: ViewSet,
 }
 
 impl Default for StationOptions {
@@ -80,6 +109,7 @@ impl Default for StationOptions {
             person_model: true,
             masks_out: None,
             truth_masks: None,
+            views: ViewSet::Both,
         }
     }
 }
@@ -90,6 +120,9 @@ pub struct FrameCounts {
     pub total: usize,
     pub with_subject: usize,
     pub fitted: usize,
+    /// Of the fitted pairs, those fitted from the front view alone (no side frame, or
+    /// `--views front`).
+    pub fitted_front_only: usize,
 }
 
 /// The station's frame processor.
@@ -123,6 +156,10 @@ pub struct StationProcessor {
     person_masks: person_masks::PersonMasks,
     /// Messages of the person mask said once per run.
     said_person_masks: bool,
+    /// The views the last fitted pair was fitted from.
+    last_views: Option<ViewSet>,
+    /// The empty image that stands for a side frame not looked at.
+    no_frame: image::RgbImage,
 }
 
 impl StationProcessor {
@@ -163,6 +200,8 @@ impl StationProcessor {
                 person_masks::PersonMasks::off()
             },
             said_person_masks: false,
+            last_views: None,
+            no_frame: image::RgbImage::new(0, 0),
             opts,
         })
     }
@@ -193,6 +232,16 @@ impl StationProcessor {
             .collect()
     }
 
+    /// The station's options.
+    pub fn options(&self) -> &StationOptions {
+        &self.opts
+    }
+
+    /// The views the reported values were last fitted from (None before a fit).
+    pub fn views(&self) -> Option<ViewSet> {
+        self.last_views
+    }
+
     /// Largest frame-to-frame change of each girth over the recent window (mm).
     pub fn max_steps(&self) -> Vec<(String, f64)> {
         MEASUREMENT_KEYS
@@ -214,10 +263,32 @@ impl StationProcessor {
 
     fn process_inner(&mut self, pair: &FramePair, timer: &mut FrameTimer) -> FitSnapshot {
         self.counts.total += 1;
+        let no_frame = std::mem::take(&mut self.no_frame);
+        let s = self.process_views(pair, timer, &no_frame);
+        self.no_frame = no_frame;
+        s
+    }
+
+    /// [`Self::process_inner`] with the side frame the station looks at: the pair's, or
+    /// `no_frame` (empty) when it has none or the station fits from the front alone.
+    fn process_views(
+        &mut self,
+        pair: &FramePair,
+        timer: &mut FrameTimer,
+        no_frame: &image::RgbImage,
+    ) -> FitSnapshot {
+        let side_frame = if self.opts.views == ViewSet::Both && pair.has_side() {
+            &pair.side
+        } else {
+            no_frame
+        };
         for (view, img) in [
             (crate::camera::View::Front, &pair.front),
-            (crate::camera::View::Side, &pair.side),
+            (crate::camera::View::Side, side_frame),
         ] {
+            if view == crate::camera::View::Side && !crate::pipeline::has_frame(img) {
+                continue;
+            }
             if let Err(e) = self.calib.check_frame_size(view, img.width(), img.height()) {
                 let mut s = FitSnapshot::empty(pair.index, Phase::LearningBackdrop);
                 s.messages.push(e.to_string());
@@ -226,7 +297,7 @@ impl StationProcessor {
         }
         if self.learned < self.opts.backdrop_frames {
             let mut s = FitSnapshot::empty(pair.index, Phase::LearningBackdrop);
-            match self.silhouettes.learn_background(&pair.front, &pair.side) {
+            match self.silhouettes.learn_background(&pair.front, side_frame) {
                 Ok(()) => self.learned += 1,
                 Err(e) => s.messages.push(format!("backdrop frame skipped: {e}")),
             }
@@ -240,16 +311,16 @@ impl StationProcessor {
             );
             return s;
         }
-        // The silhouette result is reused frame after frame (its masks and contours keep
-        // their buffers): taken out of `self` for the frame, put back after.
         if let Some(dir) = &self.opts.truth_masks {
             let [front, side] = crate::camera::View::BOTH.map(|v| read_mask(dir, v, pair.index));
             self.silhouettes.give_masks(front, side);
         }
+        // The silhouette result is reused frame after frame (its masks and contours keep
+        // their buffers): taken out of `self` for the frame, put back after.
         let mut result = std::mem::replace(&mut self.silhouette_result, SilhouetteResult::empty());
         if let Err(e) = self
             .silhouettes
-            .process_into(&pair.front, &pair.side, &mut result)
+            .process_into(&pair.front, side_frame, &mut result)
         {
             self.silhouette_result = result;
             let mut s = self.snapshot(pair.index, Phase::Guiding, None);
@@ -258,7 +329,7 @@ impl StationProcessor {
         }
         timer.lap("silhouettes");
         let mut notes = Vec::new();
-        if let Err(e) = self.fuse_person_mask(pair, timer, &mut result) {
+        if let Err(e) = self.fuse_person_mask(&pair.front, side_frame, timer, &mut result) {
             notes.push(e);
         }
         if !self.said_person_masks {
@@ -276,7 +347,7 @@ impl StationProcessor {
             // The network's map of a moving picture may hold the passer-by: not kept.
             self.person_masks.retry_soon();
         }
-        let mut s = self.fit_and_measure(pair, timer, &result);
+        let mut s = self.fit_and_measure(pair, side_frame, timer, &result);
         s.messages.extend(notes);
         self.silhouette_result = result;
         s
@@ -291,7 +362,8 @@ impl StationProcessor {
     /// first silhouettes).
     fn fuse_person_mask(
         &mut self,
-        pair: &FramePair,
+        front: &image::RgbImage,
+        side: &image::RgbImage,
         timer: &mut FrameTimer,
         result: &mut SilhouetteResult,
     ) -> Result<(), String> {
@@ -299,15 +371,13 @@ impl StationProcessor {
             self.person_masks.tick();
             return Ok(());
         }
-        let ran =
-            self.person_masks
-                .run(&pair.front, &pair.side, &self.calib, &mut self.silhouettes);
+        let ran = self
+            .person_masks
+            .run(front, side, &self.calib, &mut self.silhouettes);
         timer.lap("person_mask");
         let mut fused = SilhouetteResult::empty();
         std::mem::swap(&mut fused, result);
-        let again = self
-            .silhouettes
-            .process_into(&pair.front, &pair.side, &mut fused);
+        let again = self.silhouettes.process_into(front, side, &mut fused);
         timer.lap("silhouettes_fused");
         match again {
             Ok(()) => *result = fused,
@@ -320,7 +390,7 @@ impl StationProcessor {
                     .silhouettes
                     .set_person_prior(crate::camera::View::Side, None);
                 self.silhouettes
-                    .process_into(&pair.front, &pair.side, &mut fused)
+                    .process_into(front, side, &mut fused)
                     .map_err(|e| format!("frame segmented again without the person mask: {e}"))?;
                 *result = fused;
                 return Err(format!("person mask not used on this frame: {e}"));
@@ -350,9 +420,11 @@ impl StationProcessor {
     fn fit_and_measure(
         &mut self,
         pair: &FramePair,
+        side_frame: &image::RgbImage,
         timer: &mut FrameTimer,
         result: &SilhouetteResult,
     ) -> FitSnapshot {
+        let side_seen = crate::pipeline::has_frame(side_frame);
         let verdicts = &result.landmarks.verdicts;
         if verdicts.iter().any(|v| matches!(v, Verdict::NoPerson)) {
             let mut s = self.snapshot(pair.index, Phase::WaitingForSubject, Some(result));
@@ -385,11 +457,11 @@ impl StationProcessor {
             height: masks.front.height,
             data: &masks.front.data,
         };
-        let side = MaskRef {
+        let side = side_seen.then_some(MaskRef {
             width: masks.side.width,
             height: masks.side.height,
             data: &masks.side.data,
-        };
+        });
         // A pose held now that differs from the one the body was chosen on: choose the
         // body again (see `pose_change`), and let the shown values settle anew.
         let mut notes = Vec::new();
@@ -408,17 +480,21 @@ impl StationProcessor {
             notes.extend(self.side_limbs.unavailable.take());
         }
         // The side view's arms from the person model (run at a low rate, kept between).
-        let network_runs = self.side_limbs.due();
-        match self.side_limbs.update(&pair.side, &self.calib.side, result) {
-            Ok(o) => obs.side_occluders = o,
-            Err(e) => notes.push(e),
-        }
-        if network_runs {
-            timer.lap("side_limbs");
+        if side_seen {
+            let network_runs = self.side_limbs.due();
+            match self.side_limbs.update(side_frame, &self.calib.side, result) {
+                Ok(o) => obs.side_occluders = o,
+                Err(e) => notes.push(e),
+            }
+            if network_runs {
+                timer.lap("side_limbs");
+            }
+        } else {
+            notes.push(ONE_VIEW_MESSAGE.to_string());
         }
         let fit = self
             .fitter
-            .fit(&self.calib, front, side, &obs)
+            .fit_views(&self.calib, front, side, &obs)
             .map(|(p, st)| (p.to_vec(), st));
         timer.lap(if first { "first_fit" } else { "refit" });
         if first && fit.is_ok() {
@@ -447,17 +523,25 @@ impl StationProcessor {
                             self.fitter
                                 .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
                         });
+                        let frame_sigma = if side_seen {
+                            uncertainty::frame_sigma_mm(k, v, evidence)
+                        } else {
+                            uncertainty::frame_sigma_one_view_mm(k, v, evidence)
+                        };
                         if crate::fit::debug_enabled() {
-                            eprintln!(
-                                "evidence {k}: {evidence:?} -> {:.1}",
-                                uncertainty::frame_sigma_mm(k, v, evidence)
-                            );
+                            eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");
                         }
-                        sigma.push(uncertainty::frame_sigma_mm(k, v, evidence));
+                        sigma.push(frame_sigma);
                     }
                 }
                 self.last_measurements = Some(m);
                 self.counts.fitted += 1;
+                self.counts.fitted_front_only += !side_seen as usize;
+                self.last_views = Some(if side_seen {
+                    ViewSet::Both
+                } else {
+                    ViewSet::Front
+                });
             }
             Err(e) => {
                 timer.lap("measure");
@@ -556,6 +640,7 @@ impl FrameProcessor for StationProcessor {
         self.last_avatar = None;
         self.last_measurements = None;
         self.last_fit = None;
+        self.last_views = None;
         self.landmark_windows.clear();
         self.pose.clear();
         self.side_limbs.reset();
@@ -604,6 +689,8 @@ fn observation(r: &SilhouetteResult, stature_override: Option<f64>) -> Option<Ob
         arm_angles: arms,
         leg_angles: legs,
         side_occluders: [None; crate::fit::sections::MAX_SIDE_OCCLUDERS],
+        // Without the side view the head top is lifted onto z = 0 (see `lifting`).
+        stature_plane_z: (stature_override.is_none() && r.side.contour.is_empty()).then_some(0.0),
     })
 }
 

@@ -135,6 +135,42 @@ pub fn frame_sigma_mm(key: &str, girth_mm: f64, evidence: Option<LevelEvidence>)
     (half_pi * half_pi * (vw + vd) + shape * shape).sqrt()
 }
 
+/// How far a section's depth can be from what the front view and the stature show, mm
+/// (standard deviation). A fit without the side view takes the depth from the shape
+/// library's body for those widths and that stature, so this is the spread of real
+/// people's depths about the library's depth-given-breadth-and-stature line: over ANSUR
+/// II's 6,068 adults against the library's 252 bodies (`python3 tools/ansur_priors.py`,
+/// "front view alone", the larger of the spreads about ANSUR's own line and about the
+/// library's; the mean offset between the two is one of definitions: calipers at ANSUR's
+/// landmarks against section extents at the spec's levels). ANSUR II has no thigh
+/// breadth or depth: the thigh takes its girth's spread given hip breadth and stature
+/// (33.0 mm), all as depth, over pi/2.
+pub fn depth_prior_one_view_mm(key: &str) -> Option<f64> {
+    Some(match key {
+        "chest_girth" => 25.3,
+        "waist_girth" => 17.3,
+        "hip_girth" => 18.9,
+        "thigh_girth_left" | "thigh_girth_right" => 21.0,
+        _ => return None,
+    })
+}
+
+/// [`frame_sigma_mm`] of a frame fitted without the side view: the width as the front
+/// view showed it, the depth unseen and known as well as [`depth_prior_one_view_mm`]
+/// says (whatever the evidence says of the depth is the candidate's, not a view's).
+pub fn frame_sigma_one_view_mm(key: &str, girth_mm: f64, evidence: Option<LevelEvidence>) -> f64 {
+    let (Some(p), Some(depth_mm)) = (prior(key), depth_prior_one_view_mm(key)) else {
+        return STATURE_SIGMA_MM;
+    };
+    let vw = match evidence {
+        Some(e) => extent_variance(e.width, p.width_mm),
+        None => p.width_mm * p.width_mm,
+    };
+    let half_pi = std::f64::consts::FRAC_PI_2;
+    let shape = shape_share(key) * girth_mm;
+    (half_pi * half_pi * (vw + depth_mm * depth_mm) + shape * shape).sqrt()
+}
+
 /// The reported `±` (mm, two standard deviations) from the window's per-frame sigmas
 /// (their trimmed mean, `sigma_frame_mm`) and the spread of its values (`values_sd_mm`).
 pub fn reported_pm_mm(sigma_frame_mm: f64, values_sd_mm: f64) -> f64 {
@@ -198,6 +234,28 @@ mod tests {
         );
         assert!((reported_pm_mm(3.0, 4.0) - 10.0).abs() < 1e-9);
         assert_eq!(frame_sigma_mm("stature", 1700.0, None), STATURE_SIGMA_MM);
+    }
+
+    #[test]
+    fn one_view_is_wider_than_two_even_with_the_depth_unseen() {
+        for key in [
+            "chest_girth",
+            "waist_girth",
+            "hip_girth",
+            "thigh_girth_left",
+        ] {
+            let both = frame_sigma_mm(key, 900.0, Some(ev(1.0, 1.0, 1.0)));
+            let hidden = frame_sigma_mm(key, 900.0, Some(ev(1.0, 0.0, 1.0)));
+            let one = frame_sigma_one_view_mm(key, 900.0, Some(ev(1.0, 1.0, 1.0)));
+            assert!(
+                one > hidden && hidden > both,
+                "{key}: {one} {hidden} {both}"
+            );
+        }
+        assert_eq!(
+            frame_sigma_one_view_mm("stature", 1700.0, None),
+            STATURE_SIGMA_MM
+        );
     }
 
     #[test]

@@ -75,7 +75,9 @@ pub fn render_recording(cfg: &SynthConfig, out: &Path) -> Result<SynthSummary, S
         // Through the middle half of the subject's frames: still frames before and after.
         let (first, frames) = passerby::walk_frames(cfg.empty_frames, cfg.subject_frames);
         let cameras = [&st.calib.front, &st.calib.side];
-        Some(passerby::PasserBy::new(cfg.seed, &st.scene, first, frames, cameras)?)
+        Some(passerby::PasserBy::new(
+            cfg.seed, &st.scene, first, frames, cameras,
+        )?)
     } else {
         None
     };
@@ -325,7 +327,13 @@ fn render_view(
         );
     }
     if let Some(pb) = passer_by {
-        pb.draw(k, vr.view as usize, &vr.camera, &vr.raster, &mut vr.radiance);
+        pb.draw(
+            k,
+            vr.view as usize,
+            &vr.camera,
+            &vr.raster,
+            &mut vr.radiance,
+        );
     }
     let mut nrng = SplitMix64::stream(cfg.seed, ((k as u64) << 8) | (0x10 + vr.view as u64));
     vr.film.develop(
