@@ -35,15 +35,15 @@
 //!   lies below the ankle on its side; each as the connected part holding its extreme
 //!   vertex.
 
-use super::BodyError;
-
 mod rigid;
-mod surface;
+pub(super) mod surface;
+
+use super::BodyError;
 use crate::mesh::section::{slice, Plane};
 use crate::mesh::TriMesh;
 use glam::{DVec2, DVec3};
 use std::path::Path;
-pub use surface::{surface_landmarks, SurfaceLandmarks};
+use surface::{surface_landmarks, SurfaceLandmarks};
 
 /// Head lengths per stature (Zhong: h = stature / 7).
 pub const HEADS_PER_STATURE: f64 = 7.0;
