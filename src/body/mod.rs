@@ -33,9 +33,8 @@ use std::path::PathBuf;
 
 pub use cli::{run, TemplatesArgs};
 pub use library::ShapeLibrary;
-pub use prepare::{
-    prepare, surface_landmarks, Joints, Landmarks, RigidParts, SurfaceLandmarks, TemplateInfo,
-};
+pub use prepare::surface::{surface_landmarks, SurfaceLandmarks};
+pub use prepare::{prepare, Joints, Landmarks, RigidParts, TemplateInfo};
 
 /// Errors of the body module. File errors name the file and the line (text) or the
 /// record (binary data).

@@ -35,11 +35,15 @@
 //!   lies below the ankle on its side; each as the connected part holding its extreme
 //!   vertex.
 
+mod rigid;
+pub(super) mod surface;
+
 use super::BodyError;
 use crate::mesh::section::{slice, Plane};
 use crate::mesh::TriMesh;
 use glam::{DVec2, DVec3};
 use std::path::Path;
+use surface::{surface_landmarks, SurfaceLandmarks};
 
 /// Head lengths per stature (Zhong: h = stature / 7).
 pub const HEADS_PER_STATURE: f64 = 7.0;
@@ -554,173 +558,8 @@ fn component(
     out
 }
 
-/// The surface landmarks of a body mesh alone (method.md section 1 steps 2-4, on
-/// horizontal sections as described in the module docs), without the skeleton or the
-/// rigid parts: what [`prepare`] finds first, and what the station reports for a fitted
-/// avatar (the same definitions as the template's, so a fitted body and its truth are
-/// compared like with like).
-///
-/// # Errors
-/// A mesh that is not a standing person in an A-pose: no crotch, an arm that never
-/// separates from the torso, no shoulder envelope.
-pub fn surface_landmarks(mesh: &TriMesh) -> Result<SurfaceLandmarks, BodyError> {
-    mesh.validate().map_err(BodyError::Prepare)?;
-    let bb = mesh
-        .bounds()
-        .ok_or_else(|| BodyError::Prepare("empty mesh".into()))?;
-    let stature = bb.size().y;
-    if !(0.5..=3.0).contains(&stature) {
-        return Err(BodyError::Prepare(format!(
-            "stature {stature:.3} m is not a person's"
-        )));
-    }
-    let floor_y = bb.min.y;
-    let h = stature / HEADS_PER_STATURE;
-    let cx = bb.center().x;
-    let top_i = (0..mesh.vertex_count())
-        .max_by(|&a, &b| mesh.positions[a].y.total_cmp(&mesh.positions[b].y))
-        .unwrap_or(0);
-    let top = mesh.positions[top_i];
-    // Crotch (step 2): lowest height where a loop spans the axis, scanning up the legs.
-    let any_span = |y: f64| loops_at(mesh, y).iter().any(|l| spans(l, cx));
-    let mut y = floor_y + 0.3 * stature;
-    let y_end = floor_y + 0.7 * stature;
-    while y < y_end && !any_span(y) {
-        y += SCAN_STEP_M;
-    }
-    if y >= y_end || y <= floor_y + 0.3 * stature {
-        return Err(BodyError::Prepare(
-            "no crotch: found no two separate legs joining into a torso".into(),
-        ));
-    }
-    let crotch_y = bisect(y - SCAN_STEP_M, y, any_span);
-    // Crotch x: between the inner edges of the two thighs just below.
-    let below = loops_at(mesh, crotch_y - 2.0 * BISECT_TOL_M);
-    let thigh = |sign: f64| {
-        below
-            .iter()
-            .filter(|l| (l.centroid.x - cx) * sign > 0.0)
-            .max_by(|a, b| a.area.total_cmp(&b.area))
-    };
-    let crotch_x = match (thigh(1.0), thigh(-1.0)) {
-        (Some(l), Some(r)) => 0.5 * (l.xmin + r.xmax),
-        _ => cx,
-    };
-    let mut an = Analysis {
-        mesh,
-        h,
-        crotch: DVec3::new(crotch_x, crotch_y, 0.0),
-        top,
-    };
-    an.crotch.z = an.axis_z(crotch_y + 2.0 * BISECT_TOL_M);
-
-    // Armpits (step 3): scanning down from the neck, where an arm separates.
-    let mut armpits = [DVec3::ZERO; 2];
-    for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
-        let start = crotch_y + 2.7 * h;
-        let stop = crotch_y + 0.5 * h;
-        let mut y = start;
-        while y > stop && !has_side_loop(mesh, y, crotch_x, side) {
-            y -= SCAN_STEP_M;
-        }
-        if y <= stop {
-            return Err(BodyError::Prepare(format!(
-                "no {side:?} armpit: the arm never separates from the torso"
-            )));
-        }
-        let ay = bisect(y, y + SCAN_STEP_M, |t| {
-            has_side_loop(mesh, t, crotch_x, side)
-        });
-        let loops = loops_at(mesh, ay - 2.0 * BISECT_TOL_M);
-        let s = side.sign();
-        let torso_edge = loops
-            .iter()
-            .filter(|l| spans(l, crotch_x))
-            .map(|l| if s > 0.0 { l.xmax } else { l.xmin })
-            .fold(crotch_x, |a, b| if (b - a) * s > 0.0 { b } else { a });
-        let arm_edge = loops
-            .iter()
-            .filter(|l| !spans(l, crotch_x) && (l.centroid.x - crotch_x) * s > 0.0)
-            .map(|l| if s > 0.0 { l.xmin } else { l.xmax })
-            .fold(torso_edge, |a, b| if (b - a) * s > 0.0 { b } else { a });
-        armpits[k] = DVec3::new(0.5 * (torso_edge + arm_edge), ay, an.axis_z(ay));
-    }
-
-    // Acromions (step 4): the front upper envelope point closest to g.
-    let mut acromions = [DVec3::ZERO; 2];
-    for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
-        let s = side.sign();
-        let nbins = ((1.5 * h) / ENVELOPE_BIN_M).ceil() as usize;
-        let mut env: Vec<Option<DVec3>> = vec![None; nbins];
-        for p in &mesh.positions {
-            let d = (p.x - crotch_x) * s;
-            if d < 0.0 || p.y < armpits[k].y {
-                continue;
-            }
-            let b = (d / ENVELOPE_BIN_M) as usize;
-            if b < nbins && env[b].is_none_or(|q| p.y > q.y) {
-                env[b] = Some(*p);
-            }
-        }
-        let g = DVec2::new(
-            crotch_x + s * ACROMION_G_X_H * h,
-            crotch_y + ACROMION_G_Y_H * h,
-        );
-        acromions[k] = env
-            .iter()
-            .flatten()
-            .min_by(|a, b| {
-                (DVec2::new(a.x, a.y) - g)
-                    .length()
-                    .total_cmp(&(DVec2::new(b.x, b.y) - g).length())
-            })
-            .copied()
-            .ok_or_else(|| BodyError::Prepare(format!("no {side:?} shoulder envelope")))?;
-    }
-
-    Ok(SurfaceLandmarks {
-        stature,
-        floor_y,
-        top_index: top_i,
-        top,
-        crotch: an.crotch,
-        armpits,
-        acromions,
-    })
-}
-
-/// What [`surface_landmarks`] finds (station frame, metres).
-#[derive(Clone, Debug, PartialEq)]
-pub struct SurfaceLandmarks {
-    pub stature: f64,
-    /// Lowest point of the mesh (the soles).
-    pub floor_y: f64,
-    /// The highest vertex (top of the head).
-    pub top_index: usize,
-    pub top: DVec3,
-    pub crotch: DVec3,
-    /// Left, right.
-    pub armpits: [DVec3; 2],
-    /// Left, right.
-    pub acromions: [DVec3; 2],
-}
-
-impl SurfaceLandmarks {
-    /// Named points as the station names them (`crotch`, `armpit_left`, ...,
-    /// `head_top`).
-    pub fn named(&self) -> [(&'static str, DVec3); 6] {
-        [
-            ("head_top", self.top),
-            ("crotch", self.crotch),
-            ("armpit_left", self.armpits[0]),
-            ("armpit_right", self.armpits[1]),
-            ("acromion_left", self.acromions[0]),
-            ("acromion_right", self.acromions[1]),
-        ]
-    }
-}
-
-/// Analyses a template mesh (see the module docs).
+/// Analyses a template mesh (see the module docs): the surface landmarks, the arms'
+/// axes, the joints along the body's axis, legs and arms, then the rigid parts.
 ///
 /// # Errors
 /// [`BodyError::Prepare`] when the mesh is empty, implausibly sized (stature outside
@@ -736,132 +575,26 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
         acromions,
     } = surface_landmarks(mesh)?;
     let h = stature / HEADS_PER_STATURE;
-    let crotch_x = crotch.x;
-    let crotch_y = crotch.y;
+    let (crotch_x, crotch_y) = (crotch.x, crotch.y);
     let an = Analysis {
         mesh,
         h,
         crotch,
         top,
     };
-    let mut arm_axes: [Vec<DVec3>; 2] = [Vec::new(), Vec::new()];
-    for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
-        arm_axes[k] = trace_arm(mesh, armpits[k].y, crotch_x, side, floor_y);
-        if arm_axes[k].len() < 3 {
-            return Err(BodyError::Prepare(format!(
-                "{side:?} arm could not be traced below the armpit"
-            )));
-        }
-    }
-
-    // Axis joints (step 7).
-    let mut j = Joints {
-        hip: an.axis_joint(HIP_H),
-        abdomen: an.axis_joint(ABDOMEN_H),
-        waist: an.axis_joint(WAIST_H),
-        chest: an.axis_joint(CHEST_H),
-        neck: an.axis_joint(NECK_H),
-        head: an.axis_joint(HEAD_H),
-        head_top: an.axis_joint(HEAD_TOP_H),
-        ..Default::default()
-    };
-    j.thigh_root_left = DVec3::new(crotch_x + THIGH_ROOT_X_H * h, crotch_y, an.crotch.z);
-    j.thigh_root_right = DVec3::new(crotch_x - THIGH_ROOT_X_H * h, crotch_y, an.crotch.z);
-    j.knee_left = an.leg_joint(crotch_y - KNEE_H * h, Side::Left)?;
-    j.knee_right = an.leg_joint(crotch_y - KNEE_H * h, Side::Right)?;
-    let ankle_y = (crotch_y - ANKLE_H * h).max(floor_y + 2.0 * SCAN_STEP_M);
-    j.ankle_left = an.leg_joint(ankle_y, Side::Left)?;
-    j.ankle_right = an.leg_joint(ankle_y, Side::Right)?;
-
-    // Arms: shoulder on the extrapolated upper-arm axis, then distances along the axis.
-    let mut arm_joints = [[DVec3::ZERO; 4]; 2];
-    for k in 0..2 {
-        let axis = &arm_axes[k];
-        let upper: Vec<DVec3> = axis
-            .iter()
-            .copied()
-            .filter(|p| p.y > armpits[k].y - UPPER_ARM_FIT_H * h)
-            .collect();
-        let sy = 0.5 * (armpits[k].y + acromions[k].y);
-        let shoulder = extrapolate(&upper, sy).unwrap_or(axis[0]);
-        let mut poly = vec![shoulder];
-        poly.extend(axis.iter().copied());
-        arm_joints[k] = [
-            shoulder,
-            along(&poly, ELBOW_ALONG_H * h),
-            along(&poly, WRIST_ALONG_H * h),
-            along(&poly, HAND_ALONG_H * h),
-        ];
-    }
+    let arm_axes = trace_arms(mesh, &armpits, crotch_x, floor_y)?;
+    let mut j = axis_and_leg_joints(&an, floor_y)?;
+    let arm_joints = arm_joints(&arm_axes, &armpits, &acromions, h);
     [j.shoulder_left, j.elbow_left, j.wrist_left, j.hand_left] = arm_joints[0];
     [j.shoulder_right, j.elbow_right, j.wrist_right, j.hand_right] = arm_joints[1];
 
     // Rigid parts.
     let adj = adjacency(mesh);
-    // Head: above the neck's smallest section (area of the outer loop on the axis; its
-    // x-width would pick the chin) between the acromions and the head top.
     let acromion_y = 0.5 * (acromions[0].y + acromions[1].y);
-    let section_area = |y: f64| {
-        let a = loops_at(mesh, y)
-            .iter()
-            .filter(|l| l.xmin <= crotch_x && l.xmax >= crotch_x)
-            .map(|l| l.area)
-            .fold(0.0, f64::max);
-        if a > 0.0 {
-            a
-        } else {
-            f64::INFINITY
-        }
-    };
-    let (mut neck_cut_y, mut best) = (acromion_y, f64::INFINITY);
-    let mut y = acromion_y;
-    while y < j.head_top.y {
-        let w = section_area(y);
-        if w < best {
-            best = w;
-            neck_cut_y = y;
-        }
-        y += SCAN_STEP_M;
-    }
+    let neck_cut_y = rigid::neck_cut_y(mesh, crotch_x, acromion_y, j.head_top.y);
     let head = component(&adj, mesh, top_i, |p| p.y > neck_cut_y);
-    // Hands: beyond the wrist plane normal to the forearm.
-    let mut hands = [Vec::new(), Vec::new()];
-    for k in 0..2 {
-        let (elbow, wrist) = (arm_joints[k][1], arm_joints[k][2]);
-        let dir = (wrist - elbow).normalize_or_zero();
-        if dir == DVec3::ZERO {
-            return Err(BodyError::Prepare("degenerate forearm".into()));
-        }
-        // Seed: the vertex nearest the arm axis' last sample (among the finger tips; the
-        // farthest vertex along the forearm direction could be a toe).
-        let end = arm_axes[k].last().copied().unwrap_or(wrist);
-        let tip = (0..mesh.vertex_count())
-            .filter(|&v| (mesh.positions[v] - wrist).dot(dir) > 0.0)
-            .min_by(|&a, &b| {
-                (mesh.positions[a] - end)
-                    .length_squared()
-                    .total_cmp(&(mesh.positions[b] - end).length_squared())
-            })
-            .ok_or_else(|| BodyError::Prepare("no hand beyond the wrist".into()))?;
-        hands[k] = component(&adj, mesh, tip, |p| (p - wrist).dot(dir) > 0.0);
-    }
-    // Feet: below the ankle joints, on each side.
-    let mut feet = [Vec::new(), Vec::new()];
-    for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
-        let s = side.sign();
-        let ay = if k == 0 {
-            j.ankle_left.y
-        } else {
-            j.ankle_right.y
-        };
-        let low = (0..mesh.vertex_count())
-            .filter(|&v| (mesh.positions[v].x - crotch_x) * s > 0.0)
-            .min_by(|&a, &b| mesh.positions[a].y.total_cmp(&mesh.positions[b].y))
-            .ok_or_else(|| BodyError::Prepare(format!("no {side:?} foot")))?;
-        feet[k] = component(&adj, mesh, low, |p| p.y < ay && (p.x - crotch_x) * s > 0.0);
-    }
-    let [hand_left, hand_right] = hands;
-    let [foot_left, foot_right] = feet;
+    let [hand_left, hand_right] = rigid::hands(&adj, mesh, &arm_joints, &arm_axes)?;
+    let [foot_left, foot_right] = rigid::feet(&adj, mesh, &j, crotch_x)?;
 
     Ok(TemplateInfo {
         vertex_count: mesh.vertex_count(),
@@ -888,4 +621,77 @@ pub fn prepare(mesh: &TriMesh) -> Result<TemplateInfo, BodyError> {
             foot_right,
         },
     })
+}
+
+/// Each arm's axis, traced down from its armpit (at least three samples).
+fn trace_arms(
+    mesh: &TriMesh,
+    armpits: &[DVec3; 2],
+    crotch_x: f64,
+    floor_y: f64,
+) -> Result<[Vec<DVec3>; 2], BodyError> {
+    let mut arm_axes: [Vec<DVec3>; 2] = [Vec::new(), Vec::new()];
+    for (k, side) in [Side::Left, Side::Right].into_iter().enumerate() {
+        arm_axes[k] = trace_arm(mesh, armpits[k].y, crotch_x, side, floor_y);
+        if arm_axes[k].len() < 3 {
+            return Err(BodyError::Prepare(format!(
+                "{side:?} arm could not be traced below the armpit"
+            )));
+        }
+    }
+    Ok(arm_axes)
+}
+
+/// The joints on the body's axis (step 7), the thigh roots beside the crotch, and the
+/// knees and ankles in the legs' sections.
+fn axis_and_leg_joints(an: &Analysis<'_>, floor_y: f64) -> Result<Joints, BodyError> {
+    let (h, crotch_x, crotch_y) = (an.h, an.crotch.x, an.crotch.y);
+    let mut j = Joints {
+        hip: an.axis_joint(HIP_H),
+        abdomen: an.axis_joint(ABDOMEN_H),
+        waist: an.axis_joint(WAIST_H),
+        chest: an.axis_joint(CHEST_H),
+        neck: an.axis_joint(NECK_H),
+        head: an.axis_joint(HEAD_H),
+        head_top: an.axis_joint(HEAD_TOP_H),
+        ..Default::default()
+    };
+    j.thigh_root_left = DVec3::new(crotch_x + THIGH_ROOT_X_H * h, crotch_y, an.crotch.z);
+    j.thigh_root_right = DVec3::new(crotch_x - THIGH_ROOT_X_H * h, crotch_y, an.crotch.z);
+    j.knee_left = an.leg_joint(crotch_y - KNEE_H * h, Side::Left)?;
+    j.knee_right = an.leg_joint(crotch_y - KNEE_H * h, Side::Right)?;
+    let ankle_y = (crotch_y - ANKLE_H * h).max(floor_y + 2.0 * SCAN_STEP_M);
+    j.ankle_left = an.leg_joint(ankle_y, Side::Left)?;
+    j.ankle_right = an.leg_joint(ankle_y, Side::Right)?;
+    Ok(j)
+}
+
+/// Each arm's shoulder, elbow, wrist and hand: the shoulder on the extrapolated
+/// upper-arm axis, the others at distances along the axis.
+fn arm_joints(
+    arm_axes: &[Vec<DVec3>; 2],
+    armpits: &[DVec3; 2],
+    acromions: &[DVec3; 2],
+    h: f64,
+) -> [[DVec3; 4]; 2] {
+    let mut arm_joints = [[DVec3::ZERO; 4]; 2];
+    for k in 0..2 {
+        let axis = &arm_axes[k];
+        let upper: Vec<DVec3> = axis
+            .iter()
+            .copied()
+            .filter(|p| p.y > armpits[k].y - UPPER_ARM_FIT_H * h)
+            .collect();
+        let sy = 0.5 * (armpits[k].y + acromions[k].y);
+        let shoulder = extrapolate(&upper, sy).unwrap_or(axis[0]);
+        let mut poly = vec![shoulder];
+        poly.extend(axis.iter().copied());
+        arm_joints[k] = [
+            shoulder,
+            along(&poly, ELBOW_ALONG_H * h),
+            along(&poly, WRIST_ALONG_H * h),
+            along(&poly, HAND_ALONG_H * h),
+        ];
+    }
+    arm_joints
 }

@@ -118,7 +118,9 @@ fn view_residuals(intr: &[f64], pose: &[f64], view: &ViewObservations, out: &mut
     }
 }
 
-/// Refines intrinsics and poses from a start.
+/// Refines intrinsics and poses from a start by Levenberg-Marquardt over the views'
+/// reprojection errors, then the intrinsics' standard deviations from the normal
+/// equations at the solution and each view's RMS.
 ///
 /// `poses` are the starting `camera_from_board` of each view (same length as `views`).
 pub fn refine(
@@ -129,7 +131,47 @@ pub fn refine(
 ) -> BundleResult {
     let nv = views.len().min(poses.len());
     let np = N_INTRINSIC + N_POSE * nv;
-    let mut x = Vec::with_capacity(np);
+    let mut x = pack_parameters(start, poses, nv);
+    let free: Vec<bool> = (0..np)
+        .map(|k| k >= N_INTRINSIC || mode == IntrinsicsMode::AllFree)
+        .collect();
+    let mut ne = NormalEquations::new(np);
+    let (cost, iterations) = levenberg_marquardt(&mut x, views, nv, &free, &mut ne);
+    // Covariance of the intrinsics at the solution.
+    ne.build(&x, views, nv, &free);
+    let n_points: usize = views.iter().take(nv).map(|v| v.object.len()).sum();
+    let n_free = free.iter().filter(|f| **f).count();
+    let dof = (2 * n_points).saturating_sub(n_free).max(1) as f64;
+    let std_dev = intrinsic_std_dev(&ne.a, np, cost / dof, mode);
+    let intrinsics = intrinsics_from(&x[..N_INTRINSIC], start);
+    let poses: Vec<Rigid> = (0..nv)
+        .map(|v| pose_from(&x[N_INTRINSIC + N_POSE * v..]))
+        .collect();
+    let mut per_view = Vec::with_capacity(nv);
+    for v in 0..nv {
+        view_residuals(
+            &x[..N_INTRINSIC],
+            &x[N_INTRINSIC + N_POSE * v..N_INTRINSIC + N_POSE * (v + 1)],
+            &views[v],
+            &mut ne.buf,
+        );
+        let n = (ne.buf.len() / 2).max(1) as f64;
+        per_view.push((ne.buf.iter().map(|r| r * r).sum::<f64>() / n).sqrt());
+    }
+    BundleResult {
+        intrinsics,
+        poses,
+        rms_px: (cost / n_points.max(1) as f64).sqrt(),
+        per_view_rms_px: per_view,
+        std_dev,
+        iterations,
+    }
+}
+
+/// The parameter vector: the intrinsics, then per view its rotation (Rodrigues vector)
+/// and translation.
+fn pack_parameters(start: &Intrinsics, poses: &[Rigid], nv: usize) -> Vec<f64> {
+    let mut x = Vec::with_capacity(N_INTRINSIC + N_POSE * nv);
     x.extend_from_slice(&intrinsics_to_vec(start));
     for p in poses.iter().take(nv) {
         let r = rodrigues_from_rotation(&p.rotation);
@@ -142,39 +184,80 @@ pub fn refine(
             p.translation.z,
         ]);
     }
-    let free: Vec<bool> = (0..np)
-        .map(|k| k >= N_INTRINSIC || mode == IntrinsicsMode::AllFree)
-        .collect();
+    x
+}
 
-    let cost_of = |x: &[f64], buf: &mut Vec<f64>| -> f64 {
-        let mut c = 0.0;
-        for v in 0..nv {
-            view_residuals(
-                &x[..N_INTRINSIC],
-                &x[N_INTRINSIC + N_POSE * v..N_INTRINSIC + N_POSE * (v + 1)],
-                &views[v],
-                buf,
-            );
-            c += buf.iter().map(|r| r * r).sum::<f64>();
+/// Sum of squared reprojection errors (pixels squared) of the first `nv` views.
+fn total_cost(x: &[f64], views: &[ViewObservations], nv: usize, buf: &mut Vec<f64>) -> f64 {
+    let mut c = 0.0;
+    for v in 0..nv {
+        view_residuals(
+            &x[..N_INTRINSIC],
+            &x[N_INTRINSIC + N_POSE * v..N_INTRINSIC + N_POSE * (v + 1)],
+            &views[v],
+            buf,
+        );
+        c += buf.iter().map(|r| r * r).sum::<f64>();
+    }
+    c
+}
+
+/// The Gauss-Newton normal equations `A dx = -g` and their scratch.
+struct NormalEquations {
+    a: Vec<f64>,
+    g: Vec<f64>,
+    jac: Vec<Vec<f64>>,
+    buf: Vec<f64>,
+    plus: Vec<f64>,
+    minus: Vec<f64>,
+}
+
+impl NormalEquations {
+    fn new(np: usize) -> NormalEquations {
+        NormalEquations {
+            a: vec![0.0; np * np],
+            g: vec![0.0; np],
+            jac: Vec::new(),
+            buf: Vec::new(),
+            plus: Vec::new(),
+            minus: Vec::new(),
         }
-        c
-    };
+    }
 
-    let mut buf = Vec::new();
-    let mut plus = Vec::new();
-    let mut minus = Vec::new();
-    let mut a = vec![0.0; np * np];
-    let mut g = vec![0.0; np];
-    let mut cost = cost_of(&x, &mut buf);
+    /// Builds them at `x` (see [`build_normal_equations`]).
+    fn build(&mut self, x: &[f64], views: &[ViewObservations], nv: usize, free: &[bool]) {
+        build_normal_equations(
+            x,
+            views,
+            nv,
+            free,
+            &mut self.a,
+            &mut self.g,
+            &mut self.jac,
+            &mut self.buf,
+            &mut self.plus,
+            &mut self.minus,
+        );
+    }
+}
+
+/// Levenberg-Marquardt from `x` (updated in place) until a step no longer lowers the
+/// cost by [`MIN_RELATIVE_DECREASE`]; returns the final cost and the iterations.
+fn levenberg_marquardt(
+    x: &mut Vec<f64>,
+    views: &[ViewObservations],
+    nv: usize,
+    free: &[bool],
+    ne: &mut NormalEquations,
+) -> (f64, usize) {
+    let np = x.len();
+    let mut cost = total_cost(x, views, nv, &mut ne.buf);
     let mut lambda = LAMBDA_START;
     let mut iterations = 0;
-    let mut jac: Vec<Vec<f64>> = Vec::new();
-    let mut factor_ok = false;
     for it in 0..MAX_ITERATIONS {
         iterations = it + 1;
-        build_normal_equations(
-            &x, views, nv, &free, &mut a, &mut g, &mut jac, &mut buf, &mut plus, &mut minus,
-        );
+        ne.build(x, views, nv, free);
+        let (a, g) = (&ne.a, &ne.g);
         let mut improved = false;
         while lambda < LAMBDA_MAX {
             let mut m = a.clone();
@@ -188,10 +271,10 @@ pub fn refine(
             let mut step: Vec<f64> = g.iter().map(|v| -v).collect();
             cholesky_solve(&m, np, &mut step);
             let trial: Vec<f64> = x.iter().zip(&step).map(|(a, b)| a + b).collect();
-            let c = cost_of(&trial, &mut buf);
+            let c = total_cost(&trial, views, nv, &mut ne.buf);
             if c.is_finite() && c < cost {
                 let decrease = (cost - c) / cost.max(1e-300);
-                x = trial;
+                *x = trial;
                 cost = c;
                 lambda = (lambda * 0.1).max(1e-12);
                 improved = decrease > MIN_RELATIVE_DECREASE;
@@ -203,20 +286,21 @@ pub fn refine(
             break;
         }
     }
-    // Covariance of the intrinsics at the solution.
-    build_normal_equations(
-        &x, views, nv, &free, &mut a, &mut g, &mut jac, &mut buf, &mut plus, &mut minus,
-    );
-    let n_points: usize = views.iter().take(nv).map(|v| v.object.len()).sum();
-    let n_free = free.iter().filter(|f| **f).count();
-    let dof = (2 * n_points).saturating_sub(n_free).max(1) as f64;
-    let variance = cost / dof;
+    (cost, iterations)
+}
+
+/// Standard deviations of the intrinsics from the inverse of the normal matrix `a`
+/// (`np` x `np`) scaled by the residual variance; zero unless the intrinsics were free
+/// and `a` factors.
+fn intrinsic_std_dev(
+    a: &[f64],
+    np: usize,
+    variance: f64,
+    mode: IntrinsicsMode,
+) -> [f64; N_INTRINSIC] {
     let mut std_dev = [0.0; N_INTRINSIC];
-    let mut l = a.clone();
+    let mut l = a.to_vec();
     if mode == IntrinsicsMode::AllFree && cholesky(&mut l, np) {
-        factor_ok = true;
-    }
-    if factor_ok {
         for (k, sd) in std_dev.iter_mut().enumerate() {
             let mut e = vec![0.0; np];
             e[k] = 1.0;
@@ -224,29 +308,7 @@ pub fn refine(
             *sd = (variance * e[k]).max(0.0).sqrt();
         }
     }
-    let intrinsics = intrinsics_from(&x[..N_INTRINSIC], start);
-    let poses: Vec<Rigid> = (0..nv)
-        .map(|v| pose_from(&x[N_INTRINSIC + N_POSE * v..]))
-        .collect();
-    let mut per_view = Vec::with_capacity(nv);
-    for v in 0..nv {
-        view_residuals(
-            &x[..N_INTRINSIC],
-            &x[N_INTRINSIC + N_POSE * v..N_INTRINSIC + N_POSE * (v + 1)],
-            &views[v],
-            &mut buf,
-        );
-        let n = (buf.len() / 2).max(1) as f64;
-        per_view.push((buf.iter().map(|r| r * r).sum::<f64>() / n).sqrt());
-    }
-    BundleResult {
-        intrinsics,
-        poses,
-        rms_px: (cost / n_points.max(1) as f64).sqrt(),
-        per_view_rms_px: per_view,
-        std_dev,
-        iterations,
-    }
+    std_dev
 }
 
 /// Accumulates `A = JᵀJ` and `g = Jᵀr` at `x` (fixed parameters get identity rows).

@@ -86,7 +86,9 @@ pub enum CalibrateAction {
     Check { station_yaml: PathBuf },
 }
 
-/// Runs `fitstation calibrate`.
+/// Runs `fitstation calibrate`: each camera's lens from its board photos (or kept from
+/// the existing station.yaml), the cameras' positions from the placement board at the
+/// mark (or kept), the operator checks, and a safe write.
 pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     if let Some(CalibrateAction::Check { station_yaml }) = &args.action {
         return print_checks(station_yaml);
@@ -100,20 +102,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     };
     let board = BoardSpec::parse(board_text, square_mm).map_err(anyhow::Error::msg)?;
     let target = Target::from(args.target);
-    let previous = if out.exists() {
-        match StationCalibration::load(out) {
-            Ok(p) => Some(p),
-            Err(e) => {
-                eprintln!(
-                    "note: the existing {} cannot be read ({e}); it will be kept as a backup",
-                    out.display()
-                );
-                None
-            }
-        }
-    } else {
-        None
-    };
+    let previous = load_previous(out);
     let mut progress = |p: &Progress| match p {
         Progress::ViewSearched {
             camera,
@@ -128,16 +117,79 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     println!("Board: {board} ({})", target.name());
 
     // 1. Intrinsics.
+    let (calibs, [front_intr, side_intr]) =
+        calibrate_lenses(&args, &board, target, previous.as_ref(), out, &mut progress)?;
+    // 2. Extrinsics.
+    let (poses, extra) = camera_poses(
+        &args,
+        board,
+        target,
+        [front_intr, side_intr],
+        previous.as_ref(),
+        out,
+    )?;
+    let station = assemble_station(
+        [front_intr, side_intr],
+        poses,
+        (board, square_mm, target),
+        &calibs,
+        previous.as_ref(),
+        extra,
+    );
+
+    // 3. Checks.
+    let checks = check_station(&station);
+    println!("{checks}");
+
+    // 4. Safe write.
+    let written = write_safely(&station, previous.as_ref(), out, args.force)?;
+    println!(
+        "wrote {} (total {:.1} s)",
+        written.display(),
+        total.elapsed().as_secs_f64()
+    );
+    Ok(())
+}
+
+/// The station.yaml already at `out`, if any can be read (one that cannot is kept as a
+/// backup by the write).
+fn load_previous(out: &Path) -> Option<StationCalibration> {
+    if out.exists() {
+        match StationCalibration::load(out) {
+            Ok(p) => Some(p),
+            Err(e) => {
+                eprintln!(
+                    "note: the existing {} cannot be read ({e}); it will be kept as a backup",
+                    out.display()
+                );
+                None
+            }
+        }
+    } else {
+        None
+    }
+}
+
+/// Each camera's lens: calibrated from its folder of board photos, or kept from the
+/// previous calibration; returns the calibrations made and both cameras' intrinsics.
+fn calibrate_lenses(
+    args: &CalibrateArgs,
+    board: &BoardSpec,
+    target: Target,
+    previous: Option<&StationCalibration>,
+    out: &Path,
+    progress: &mut dyn FnMut(&Progress),
+) -> anyhow::Result<(Vec<Option<IntrinsicsCalibration>>, [Intrinsics; 2])> {
     let mut calibs: Vec<Option<IntrinsicsCalibration>> = Vec::new();
     let mut intr: Vec<Intrinsics> = Vec::new();
     for (view, dir) in [(View::Front, &args.front), (View::Side, &args.side)] {
         match dir {
             Some(dir) => {
                 let t = Instant::now();
-                let views = detect_views(dir, view.name(), &board, target, &mut progress)?;
+                let views = detect_views(dir, view.name(), board, target, progress)?;
                 let detect_ms = t.elapsed().as_secs_f64() * 1e3;
                 let t = Instant::now();
-                let c = calibrate_intrinsics(&views, &board, &mut progress)?;
+                let c = calibrate_intrinsics(&views, board, progress)?;
                 println!("{c}");
                 println!(
                     "  timings: detection {:.0} ms ({:.1} ms per image), optimisation {:.0} ms",
@@ -149,7 +201,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
                 calibs.push(Some(c));
             }
             None => {
-                let Some(prev) = &previous else {
+                let Some(prev) = previous else {
                     bail!("no --{} folder and no existing {} to take that camera's lens calibration from: pass --{} DIR with 10-15 board photos", view.name(), out.display(), view.name());
                 };
                 println!(
@@ -162,9 +214,20 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             }
         }
     }
-    let (front_intr, side_intr) = (intr[0], intr[1]);
+    Ok((calibs, [intr[0], intr[1]]))
+}
 
-    // 2. Extrinsics.
+/// Both cameras' poses: placed from one image each of the placement board at the mark,
+/// or kept from the previous calibration, or nominal placeholders; with the notes that
+/// record how they were found.
+fn camera_poses(
+    args: &CalibrateArgs,
+    board: BoardSpec,
+    target: Target,
+    [front_intr, side_intr]: [Intrinsics; 2],
+    previous: Option<&StationCalibration>,
+    out: &Path,
+) -> anyhow::Result<([Rigid; 2], Vec<(String, String)>)> {
     let mut extra: Vec<(String, String)> = Vec::new();
     let poses: [Rigid; 2] = match (&args.station_front, &args.station_side) {
         (Some(sf), Some(ss)) => {
@@ -187,7 +250,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
             extra.push(("extrinsics".into(), "placement board at the mark".into()));
             [placed[0].camera_from_station, placed[1].camera_from_station]
         }
-        (None, None) => match &previous {
+        (None, None) => match previous {
             Some(prev) => {
                 println!("no station images: keeping the camera positions of {}", out.display());
                 extra.push(("extrinsics".into(), "kept from the previous calibration".into()));
@@ -208,7 +271,20 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         },
         _ => bail!("give both --station-front and --station-side (one image of the placement board from each camera)"),
     };
+    Ok((poses, extra))
+}
 
+/// The station calibration from the cameras' lenses and poses, with its notes: the
+/// board, each lens's RMS and views (kept ones from the previous calibration), how the
+/// poses were found, and when.
+fn assemble_station(
+    [front_intr, side_intr]: [Intrinsics; 2],
+    poses: [Rigid; 2],
+    (board, square_mm, target): (BoardSpec, f64, Target),
+    calibs: &[Option<IntrinsicsCalibration>],
+    previous: Option<&StationCalibration>,
+    extra: Vec<(String, String)>,
+) -> StationCalibration {
     let mut station = StationCalibration {
         front: Camera {
             intrinsics: front_intr,
@@ -227,13 +303,12 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
         .extra
         .push(("square_mm".into(), format!("{square_mm}")));
     station.extra.push(("target".into(), target.name().into()));
-    for (view, c) in [View::Front, View::Side].iter().zip(&calibs) {
+    for (view, c) in [View::Front, View::Side].iter().zip(calibs) {
         let (rms, n) = match c {
             Some(c) => (format!("{:.4}", c.rms_px), format!("{}", c.used_views)),
             None => (
-                old_extra(previous.as_ref(), &format!("{}_rms_px", view.name()))
-                    .unwrap_or_default(),
-                old_extra(previous.as_ref(), &format!("{}_views", view.name())).unwrap_or_default(),
+                old_extra(previous, &format!("{}_rms_px", view.name())).unwrap_or_default(),
+                old_extra(previous, &format!("{}_views", view.name())).unwrap_or_default(),
             ),
         };
         if !rms.is_empty() {
@@ -251,19 +326,7 @@ pub fn run(args: CalibrateArgs) -> anyhow::Result<()> {
     station
         .extra
         .push(("calibrated_unix_s".into(), format!("{now}")));
-
-    // 3. Checks.
-    let checks = check_station(&station);
-    println!("{checks}");
-
-    // 4. Safe write.
-    let written = write_safely(&station, previous.as_ref(), out, args.force)?;
-    println!(
-        "wrote {} (total {:.1} s)",
-        written.display(),
-        total.elapsed().as_secs_f64()
-    );
-    Ok(())
+    station
 }
 
 fn old_extra(prev: Option<&StationCalibration>, key: &str) -> Option<String> {

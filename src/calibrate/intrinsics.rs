@@ -8,7 +8,7 @@
 use super::board::{BoardSpec, Target};
 use super::bundle::{refine, BundleResult, IntrinsicsMode, ViewObservations, N_INTRINSIC};
 use super::corners::{median, CornerDetector, DetectError, Detection};
-use super::zhang::{closed_form, homography, pose_from_homography, StartMethod};
+use super::zhang::{closed_form, homography, pose_from_homography, ClosedForm, StartMethod};
 use super::{CalibError, Progress, MAX_BLUR_SIGMA_PX};
 use crate::camera::{Intrinsics, Rigid};
 use glam::{DVec2, DVec3};
@@ -182,7 +182,9 @@ pub fn detect_views(
     })
 }
 
-/// Calibrates one camera's intrinsics from its detected views.
+/// Calibrates one camera's intrinsics from its detected views: screen the views, start
+/// from Zhang's closed form, refine by Levenberg-Marquardt dropping outlier views, then
+/// judge the result.
 ///
 /// # Errors
 /// Too few usable views, views too similar, a failed start, or an RMS above
@@ -194,16 +196,80 @@ pub fn calibrate_intrinsics(
 ) -> Result<IntrinsicsCalibration, CalibError> {
     let camera = input.camera.clone();
     let object = board.object_points();
+    let (mut reports, candidates) = screen_views(input, object.len());
+    if candidates.len() < MIN_VIEWS {
+        return Err(too_few_views(&camera, candidates.len(), &reports));
+    }
+    progress(&Progress::Stage(format!(
+        "{camera}: closed-form start from {} views",
+        candidates.len()
+    )));
+    let (start, poses) = closed_form_start(input, &object, &candidates)?;
+    let start_intr = Intrinsics {
+        width: input.width,
+        height: input.height,
+        fx: start.pinhole.fx,
+        fy: start.pinhole.fy,
+        cx: start.pinhole.cx,
+        cy: start.pinhole.cy,
+        dist: [0.0; 5],
+    };
+
+    let (result, active) = refine_without_outliers(
+        &camera,
+        &object,
+        &candidates,
+        start_intr,
+        poses,
+        &mut reports,
+        progress,
+    );
+    if active.len() < MIN_VIEWS {
+        return Err(too_few_views(&camera, active.len(), &reports));
+    }
+    // A NaN RMS (a diverged fit) is refused too.
+    if result.rms_px.is_nan() || result.rms_px > MAX_ACCEPTED_RMS_PX {
+        return Err(CalibError::PoorFit {
+            camera,
+            rms_px: result.rms_px,
+            max_px: MAX_ACCEPTED_RMS_PX,
+        });
+    }
+    let used_corners: Vec<&Vec<DVec2>> = active.iter().map(|&a| candidates[a].1).collect();
+    let coverage = coverage(&used_corners, input.width, input.height);
+    let warnings = intrinsics_warnings(active.len(), coverage, result.rms_px);
+    let spread = orientation_spread_deg(&result.poses);
+    Ok(IntrinsicsCalibration {
+        camera,
+        intrinsics: result.intrinsics,
+        rms_px: result.rms_px,
+        std_dev: result.std_dev,
+        views: reports,
+        used_views: active.len(),
+        poses: result.poses,
+        start: start.method,
+        orientation_spread_deg: spread,
+        coverage,
+        warnings,
+    })
+}
+
+/// A view kept for the calibration: its index in the input and its corners (pixels).
+type Candidate<'a> = (usize, &'a Vec<DVec2>);
+
+/// Screens the views: refuses those whose board was not found (or not whole, of
+/// `corners` corners), blurred or duplicating an earlier view; returns a report per view
+/// (the kept ones provisionally used) and the kept views.
+fn screen_views(input: &CameraViews, corners: usize) -> (Vec<ViewReport>, Vec<Candidate<'_>>) {
     let mut reports: Vec<ViewReport> = Vec::with_capacity(input.views.len());
-    // Screening: not found, blurred, duplicate.
-    let mut candidates: Vec<(usize, &Vec<DVec2>)> = Vec::new();
+    let mut candidates: Vec<Candidate<'_>> = Vec::new();
     for (k, v) in input.views.iter().enumerate() {
         let outcome = match &v.detection {
             Err(e) => Some(match e.blurred() {
                 Some(sigma_px) => ViewOutcome::Blurred { sigma_px },
                 None => ViewOutcome::NotFound(e.to_string()),
             }),
-            Ok(d) if d.corners.len() != object.len() => {
+            Ok(d) if d.corners.len() != corners => {
                 Some(ViewOutcome::NotFound("wrong number of corners".into()))
             }
             Ok(d) if d.blur_sigma_px > MAX_BLUR_SIGMA_PX => Some(ViewOutcome::Blurred {
@@ -229,31 +295,36 @@ pub fn calibrate_intrinsics(
             outcome: outcome.unwrap_or(ViewOutcome::Used { rms_px: f64::NAN }),
         });
     }
-    let too_few = |usable: usize, reports: &[ViewReport]| {
-        let count =
-            |f: &dyn Fn(&ViewOutcome) -> bool| reports.iter().filter(|r| f(&r.outcome)).count();
-        let detail = format!(
-            "{} images: board not found in {}, blurred {}, duplicates {}, outliers {}.",
-            reports.len(),
-            count(&|o| matches!(o, ViewOutcome::NotFound(_))),
-            count(&|o| matches!(o, ViewOutcome::Blurred { .. })),
-            count(&|o| matches!(o, ViewOutcome::Duplicate { .. })),
-            count(&|o| matches!(o, ViewOutcome::Outlier { .. })),
-        );
-        CalibError::TooFewViews {
-            camera: camera.clone(),
-            usable,
-            needed: MIN_VIEWS,
-            detail,
-        }
-    };
-    if candidates.len() < MIN_VIEWS {
-        return Err(too_few(candidates.len(), &reports));
+    (reports, candidates)
+}
+
+/// The refusal for too few usable views, counting why the others were refused.
+fn too_few_views(camera: &str, usable: usize, reports: &[ViewReport]) -> CalibError {
+    let count = |f: &dyn Fn(&ViewOutcome) -> bool| reports.iter().filter(|r| f(&r.outcome)).count();
+    let detail = format!(
+        "{} images: board not found in {}, blurred {}, duplicates {}, outliers {}.",
+        reports.len(),
+        count(&|o| matches!(o, ViewOutcome::NotFound(_))),
+        count(&|o| matches!(o, ViewOutcome::Blurred { .. })),
+        count(&|o| matches!(o, ViewOutcome::Duplicate { .. })),
+        count(&|o| matches!(o, ViewOutcome::Outlier { .. })),
+    );
+    CalibError::TooFewViews {
+        camera: camera.to_string(),
+        usable,
+        needed: MIN_VIEWS,
+        detail,
     }
-    progress(&Progress::Stage(format!(
-        "{camera}: closed-form start from {} views",
-        candidates.len()
-    )));
+}
+
+/// Zhang's closed-form start from the views' homographies and the board's pose in each
+/// view under it; refused when the views are too alike in orientation.
+fn closed_form_start(
+    input: &CameraViews,
+    object: &[DVec3],
+    candidates: &[Candidate<'_>],
+) -> Result<(ClosedForm, Vec<Rigid>), CalibError> {
+    let camera = input.camera.clone();
     let board_xy: Vec<DVec2> = object.iter().map(|p| p.truncate()).collect();
     let hs: Vec<_> = candidates
         .iter()
@@ -298,20 +369,24 @@ pub fn calibrate_intrinsics(
             needed_deg: MIN_ORIENTATION_SPREAD_DEG,
         });
     }
-    let start_intr = Intrinsics {
-        width: input.width,
-        height: input.height,
-        fx: start.pinhole.fx,
-        fy: start.pinhole.fy,
-        cx: start.pinhole.cx,
-        cy: start.pinhole.cy,
-        dist: [0.0; 5],
-    };
+    Ok((start, poses))
+}
 
-    // Refine, then drop outlier views and refine again.
+/// Levenberg-Marquardt from the start over the kept views, dropping outlier views (RMS
+/// above [`OUTLIER_FACTOR`] times the median) and refining again; marks every view's
+/// report used or outlier and returns the result with the views it used.
+fn refine_without_outliers(
+    camera: &str,
+    object: &[DVec3],
+    candidates: &[Candidate<'_>],
+    start_intr: Intrinsics,
+    poses: Vec<Rigid>,
+    reports: &mut [ViewReport],
+    progress: &mut dyn FnMut(&Progress),
+) -> (BundleResult, Vec<usize>) {
     let mut active: Vec<usize> = (0..candidates.len()).collect();
     let mut current_start = start_intr;
-    let mut current_poses = poses.clone();
+    let mut current_poses = poses;
     let mut result: BundleResult;
     let mut round = 0;
     loop {
@@ -322,7 +397,7 @@ pub fn calibrate_intrinsics(
         let views: Vec<ViewObservations> = active
             .iter()
             .map(|&a| ViewObservations {
-                object: object.clone(),
+                object: object.to_vec(),
                 image: candidates[a].1.clone(),
             })
             .collect();
@@ -363,49 +438,29 @@ pub fn calibrate_intrinsics(
             rms_px: result.per_view_rms_px[i],
         };
     }
-    if active.len() < MIN_VIEWS {
-        return Err(too_few(active.len(), &reports));
-    }
-    // A NaN RMS (a diverged fit) is refused too.
-    if result.rms_px.is_nan() || result.rms_px > MAX_ACCEPTED_RMS_PX {
-        return Err(CalibError::PoorFit {
-            camera,
-            rms_px: result.rms_px,
-            max_px: MAX_ACCEPTED_RMS_PX,
-        });
-    }
-    let used_corners: Vec<&Vec<DVec2>> = active.iter().map(|&a| candidates[a].1).collect();
-    let coverage = coverage(&used_corners, input.width, input.height);
+    (result, active)
+}
+
+/// Advice on a calibration that passed: few views, the board far from the image's
+/// corners, or a high RMS.
+fn intrinsics_warnings(used_views: usize, coverage: f64, rms_px: f64) -> Vec<String> {
     let mut warnings = Vec::new();
-    if active.len() < RECOMMENDED_VIEWS {
+    if used_views < RECOMMENDED_VIEWS {
         warnings.push(format!(
             "only {} views used; {RECOMMENDED_VIEWS}-15 give a steadier result",
-            active.len()
+            used_views
         ));
     }
     if coverage < MIN_COVERAGE {
         warnings.push(format!("the board reached only {:.0}% of the image: add views with the board near the image corners and edges (lens distortion is measured there)", coverage * 100.0));
     }
-    if result.rms_px > WARN_RMS_PX {
+    if rms_px > WARN_RMS_PX {
         warnings.push(format!(
             "RMS {:.2} px is high: check that the board is flat and the photos sharp",
-            result.rms_px
+            rms_px
         ));
     }
-    let spread = orientation_spread_deg(&result.poses);
-    Ok(IntrinsicsCalibration {
-        camera,
-        intrinsics: result.intrinsics,
-        rms_px: result.rms_px,
-        std_dev: result.std_dev,
-        views: reports,
-        used_views: active.len(),
-        poses: result.poses,
-        start: start.method,
-        orientation_spread_deg: spread,
-        coverage,
-        warnings,
-    })
+    warnings
 }
 
 /// A live frame must move the board's corners by this much (mean, pixels) from every

@@ -729,6 +729,9 @@ fn time_paper_decoder(
     opts: DecodeOptions,
     fast: &FastDecodes,
 ) -> anyhow::Result<()> {
+    let FastDecodes {
+        fast_pos, fast_ms, ..
+    } = fast;
     let paper_opts = DecodeOptions {
         max_iterations: args.paper_max_sweeps,
         ..opts
@@ -746,14 +749,14 @@ fn time_paper_decoder(
     );
     let agree = paper_pos
         .iter()
-        .zip(&fast.fast_pos)
+        .zip(fast_pos)
         .map(|(a, b)| (*a - *b).length())
         .fold(0.0, f64::max);
     println!(
         "decoders agree to:   {:8.4} mm (max vertex distance)",
         agree * 1e3
     );
-    println!("ratio paper / fast:  {:8.1}x", paper_ms / fast.fast_ms);
+    println!("ratio paper / fast:  {:8.1}x", paper_ms / fast_ms);
     Ok(())
 }
 
