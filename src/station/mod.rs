@@ -19,6 +19,7 @@ pub mod uncertainty;
 use crate::body::ShapeLibrary;
 use crate::camera::StationCalibration;
 use crate::fit::correspond::MaskRef;
+use crate::fit::sections::{SideOccluder, MAX_SIDE_OCCLUDERS};
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
 use crate::imgproc::Mask;
 use crate::landmarks::graze::TemplateProfiles;
@@ -425,24 +426,7 @@ impl StationProcessor {
         result: &SilhouetteResult,
     ) -> FitSnapshot {
         let side_seen = crate::pipeline::has_frame(side_frame);
-        let verdicts = &result.landmarks.verdicts;
-        if verdicts.iter().any(|v| matches!(v, Verdict::NoPerson)) {
-            let mut s = self.snapshot(pair.index, Phase::WaitingForSubject, Some(result));
-            s.messages.push(Verdict::NoPerson.message());
-            return s;
-        }
-        self.counts.with_subject += 1;
-        // While the outline moves, the pose verdicts judge someone else's limbs too: only
-        // the wait is said.
-        let moving = verdicts.iter().any(|v| matches!(v, Verdict::Moving { .. }));
-        let blocking: Vec<String> = verdicts
-            .iter()
-            .filter(|v| v.blocks_fit() && (!moving || matches!(v, Verdict::Moving { .. })))
-            .map(|v| v.message())
-            .collect();
-        if !blocking.is_empty() {
-            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
-            s.messages.extend(blocking);
+        if let Some(s) = self.refusal(pair, result) {
             return s;
         }
         let Some(mut obs) = observation(result, self.opts.stature_m) else {
@@ -462,33 +446,10 @@ impl StationProcessor {
             height: masks.side.height,
             data: &masks.side.data,
         });
-        // A pose held now that differs from the one the body was chosen on: choose the
-        // body again (see `pose_change`), and let the shown values settle anew.
         let mut notes = Vec::new();
-        if self.pose.observe(&result.landmarks.points) && self.fitter.has_subject() {
-            self.fitter.reset();
-            for s in self.smoothed.iter_mut().chain(&mut self.sigmas) {
-                s.clear();
-            }
-            self.landmark_windows.clear();
-            self.person_masks.expire();
-            notes.push("The pose changed: the body is chosen again on the held pose.".to_string());
-        }
-        let first = !self.fitter.has_subject();
-        if first {
-            self.side_limbs.reset();
-            notes.extend(self.side_limbs.unavailable.take());
-        }
-        // The side view's arms from the person model (run at a low rate, kept between).
+        let first = self.follow_pose(result, &mut notes);
         if side_seen {
-            let network_runs = self.side_limbs.due();
-            match self.side_limbs.update(side_frame, &self.calib.side, result) {
-                Ok(o) => obs.side_occluders = o,
-                Err(e) => notes.push(e),
-            }
-            if network_runs {
-                timer.lap("side_limbs");
-            }
+            obs.side_occluders = self.side_arms(side_frame, result, timer, &mut notes);
         } else {
             notes.push(ONE_VIEW_MESSAGE.to_string());
         }
@@ -510,47 +471,13 @@ impl StationProcessor {
         };
         let triangles = self.fitter.template_triangles().to_vec();
         let avatar = TriMesh::new(positions, triangles);
-        match crate::measure::measure(&avatar) {
-            Ok(m) => {
-                let map = m.to_report_map();
-                for (k, (s, sigma)) in MEASUREMENT_KEYS
-                    .iter()
-                    .zip(self.smoothed.iter_mut().zip(self.sigmas.iter_mut()))
-                {
-                    if let Some(v) = map.get(*k).and_then(|v| v.as_f64()) {
-                        s.push(v);
-                        let evidence = uncertainty::level_of(k, &m).and_then(|(region, y)| {
-                            self.fitter
-                                .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
-                        });
-                        let frame_sigma = if side_seen {
-                            uncertainty::frame_sigma_mm(k, v, evidence)
-                        } else {
-                            uncertainty::frame_sigma_one_view_mm(k, v, evidence)
-                        };
-                        if crate::fit::debug_enabled() {
-                            eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");
-                        }
-                        sigma.push(frame_sigma);
-                    }
-                }
-                self.last_measurements = Some(m);
-                self.counts.fitted += 1;
-                self.counts.fitted_front_only += !side_seen as usize;
-                self.last_views = Some(if side_seen {
-                    ViewSet::Both
-                } else {
-                    ViewSet::Front
-                });
-            }
-            Err(e) => {
-                timer.lap("measure");
-                let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
-                s.messages.push(format!("measurement skipped: {e}"));
-                return s;
-            }
-        }
+        let measured = self.measure_avatar(&avatar, side_seen);
         timer.lap("measure");
+        if let Err(e) = measured {
+            let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
+            s.messages.push(format!("measurement skipped: {e}"));
+            return s;
+        }
         self.last_avatar = Some(Arc::new(avatar));
         self.last_fit = Some(stats);
         self.landmark_windows.push(
@@ -568,12 +495,121 @@ impl StationProcessor {
         let mut s = self.snapshot(pair.index, phase, Some(result));
         s.messages.extend(notes);
         s.messages.extend(
-            verdicts
+            result
+                .landmarks
+                .verdicts
                 .iter()
                 .filter(|v| !v.blocks_fit() && !matches!(v, Verdict::NoPerson))
                 .map(|v| v.message()),
         );
         s
+    }
+
+    /// The snapshot of a pair that is not fitted because of its verdicts (nobody on the
+    /// mark, a verdict that blocks the fit), or None when it is to be fitted.
+    fn refusal(&mut self, pair: &FramePair, result: &SilhouetteResult) -> Option<FitSnapshot> {
+        let verdicts = &result.landmarks.verdicts;
+        if verdicts.iter().any(|v| matches!(v, Verdict::NoPerson)) {
+            let mut s = self.snapshot(pair.index, Phase::WaitingForSubject, Some(result));
+            s.messages.push(Verdict::NoPerson.message());
+            return Some(s);
+        }
+        self.counts.with_subject += 1;
+        // While the outline moves, the pose verdicts judge someone else's limbs too: only
+        // the wait is said.
+        let moving = verdicts.iter().any(|v| matches!(v, Verdict::Moving { .. }));
+        let blocking: Vec<String> = verdicts
+            .iter()
+            .filter(|v| v.blocks_fit() && (!moving || matches!(v, Verdict::Moving { .. })))
+            .map(|v| v.message())
+            .collect();
+        if blocking.is_empty() {
+            return None;
+        }
+        let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
+        s.messages.extend(blocking);
+        Some(s)
+    }
+
+    /// Follows the held pose: one that differs from the pose the body was chosen on has
+    /// the body chosen again (see `pose_change`) and the shown values settle anew.
+    /// Returns whether this frame's fit is a first fit.
+    fn follow_pose(&mut self, result: &SilhouetteResult, notes: &mut Vec<String>) -> bool {
+        if self.pose.observe(&result.landmarks.points) && self.fitter.has_subject() {
+            self.fitter.reset();
+            for s in self.smoothed.iter_mut().chain(&mut self.sigmas) {
+                s.clear();
+            }
+            self.landmark_windows.clear();
+            self.person_masks.expire();
+            notes.push("The pose changed: the body is chosen again on the held pose.".to_string());
+        }
+        let first = !self.fitter.has_subject();
+        if first {
+            self.side_limbs.reset();
+            notes.extend(self.side_limbs.unavailable.take());
+        }
+        first
+    }
+
+    /// The side view's arms from the person model (run at a low rate, kept between).
+    fn side_arms(
+        &mut self,
+        side_frame: &image::RgbImage,
+        result: &SilhouetteResult,
+        timer: &mut FrameTimer,
+        notes: &mut Vec<String>,
+    ) -> [Option<SideOccluder>; MAX_SIDE_OCCLUDERS] {
+        let network_runs = self.side_limbs.due();
+        let arms = match self.side_limbs.update(side_frame, &self.calib.side, result) {
+            Ok(o) => o,
+            Err(e) => {
+                notes.push(e);
+                Default::default()
+            }
+        };
+        if network_runs {
+            timer.lap("side_limbs");
+        }
+        arms
+    }
+
+    /// Measures the fitted avatar and adds its values and their frame uncertainties
+    /// (one-view ones without the side view) to the smoothed windows.
+    fn measure_avatar(&mut self, avatar: &TriMesh, side_seen: bool) -> Result<(), String> {
+        let m = crate::measure::measure(avatar).map_err(|e| e.to_string())?;
+        let map = m.to_report_map();
+        for (k, (s, sigma)) in MEASUREMENT_KEYS
+            .iter()
+            .zip(self.smoothed.iter_mut().zip(self.sigmas.iter_mut()))
+        {
+            let Some(v) = map.get(*k).and_then(|v| v.as_f64()) else {
+                continue;
+            };
+            s.push(v);
+            let evidence = uncertainty::level_of(k, &m).and_then(|(region, y)| {
+                self.fitter
+                    .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
+            });
+            let frame_sigma = if side_seen {
+                uncertainty::frame_sigma_mm(k, v, evidence)
+            } else {
+                uncertainty::frame_sigma_one_view_mm(k, v, evidence)
+            };
+            if crate::fit::debug_enabled() {
+                eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");
+            }
+            sigma.push(frame_sigma);
+        }
+        self.last_measurements = Some(m);
+        self.counts.fitted += 1;
+        self.counts.fitted_front_only += !side_seen as usize;
+        self.last_views = Some(if side_seen {
+            ViewSet::Both
+        } else {
+            ViewSet::Front
+        });
+        Ok(())
     }
 
     fn snapshot(&self, index: u64, phase: Phase, result: Option<&SilhouetteResult>) -> FitSnapshot {
