@@ -5,9 +5,12 @@
 //! does when nobody is on the mark ([`FrameProcessor::reset_subject`], the flow's
 //! `ClearSubject`).
 //!
-//! Every few seconds the run samples its own resident memory (`VmRSS`), thread count
-//! (`Threads`, both from `/proc/self/status`) and open files (entries of
-//! `/proc/self/fd`); every frame pair's wall time (decoding plus the station) is kept in
+//! Every few seconds, at the end of a visit (the same moment of the cycle each time),
+//! the run samples its own resident memory (`VmRSS`, and the peak `VmHWM`), thread count
+//! (`Threads`, all from `/proc/self/status`), open files (entries of `/proc/self/fd`)
+//! and what the program holds from malloc (glibc's `mallinfo2`), which tells a leak
+//! (the heap in use grows) from the allocator's own growth (only the resident memory
+//! grows); every frame pair's wall time (decoding plus the station) is kept in
 //! a fixed-size histogram for the first and the last timing window. At the end it
 //! prints the summary and fails (exit code 1) when the memory grows faster than the
 //! bound after warm-up, the thread or file counts grow, or a visit produced no result.
@@ -71,6 +74,9 @@ pub struct SoakArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Also write every sample (time, RSS, heap, threads, files) to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    pub samples_csv: Option<PathBuf>,
 }
 
 /// One sample of the process's resources.
@@ -79,8 +85,16 @@ pub struct ProcSample {
     /// Seconds since the soak started.
     pub t_s: f64,
     pub rss_kb: u64,
+    /// Peak resident memory so far (`VmHWM`, kB): the visits' highs between samples.
+    pub rss_peak_kb: u64,
     pub threads: u64,
     pub fds: u64,
+    /// Bytes the program holds from malloc (kB; glibc's `mallinfo2`: `uordblks +
+    /// hblkhd`). Flat while `rss_kb` climbs means the allocator's free space grew
+    /// (fragmentation), not the program's data.
+    pub heap_in_use_kb: u64,
+    /// Memory malloc has from the system (kB; `arena + hblkhd`), in use or free.
+    pub heap_mapped_kb: u64,
 }
 
 /// Reads resident memory and threads from `/proc/self/status` and counts `/proc/self/fd`.
@@ -101,11 +115,16 @@ pub fn read_proc_sample(t_s: f64) -> anyhow::Result<ProcSample> {
     let fds = std::fs::read_dir("/proc/self/fd")
         .context("cannot list /proc/self/fd")?
         .count() as u64;
+    let heap = crate::io::heap::heap_usage();
+    let (heap_in_use_kb, heap_mapped_kb) = (heap.in_use_bytes / 1024, heap.mapped_bytes / 1024);
     Ok(ProcSample {
         t_s,
         rss_kb: field("VmRSS:")?,
+        rss_peak_kb: field("VmHWM:")?,
         threads: field("Threads:")?,
         fds,
+        heap_in_use_kb,
+        heap_mapped_kb,
     })
 }
 
@@ -268,7 +287,11 @@ impl<'a> MeteredSource<'a> {
         }
     }
 
-    /// Takes a sample when one is due (and a progress line when one is due).
+    /// Takes a sample when one is due (and a progress line when one is due). Called
+    /// between visits, so that every sample sees the station in the same state (nobody on
+    /// the mark): within a visit the heap swings by the frames' working set (about 20 MB),
+    /// which sampled at random points of the visits would bury a slope of 1 MB per hour.
+    /// The peak within visits is `VmHWM`.
     fn sample_if_due(&mut self) {
         let t = self.elapsed_s();
         if t < self.next_sample_s || self.sample_error.is_some() {
@@ -291,10 +314,12 @@ impl<'a> MeteredSource<'a> {
     fn say_progress(&self, t: f64) {
         if let Some(s) = self.samples.last() {
             eprintln!(
-                "soak {:.1}/{:.1} min: rss {:.1} MB, {} threads, {} fds, {} visits, {} results",
+                "soak {:.1}/{:.1} min: rss {:.1} MB (heap {:.1} in use of {:.1}), {} threads, {} fds, {} visits, {} results",
                 t / 60.0,
                 self.plan.run_s / 60.0,
                 s.rss_kb as f64 / KB,
+                s.heap_in_use_kb as f64 / KB,
+                s.heap_mapped_kb as f64 / KB,
                 s.threads,
                 s.fds,
                 self.visits,
@@ -326,7 +351,6 @@ impl<'a> MeteredSource<'a> {
 impl FrameSource for MeteredSource<'_> {
     fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
         self.time_previous_pair(Instant::now());
-        self.sample_if_due();
         self.inner.next_pair()
     }
     fn calibration(&self) -> Option<&crate::camera::StationCalibration> {
@@ -374,10 +398,23 @@ pub struct SoakSummary {
     pub rss_mb_first: f64,
     pub rss_mb_last: f64,
     pub rss_mb_max: f64,
+    /// Peak resident memory (`VmHWM`) at the end of the warm-up and at the end (MB).
+    pub rss_peak_mb_after_warm_up: f64,
+    pub rss_peak_mb_last: f64,
+    /// End of the warm-up (s): the first [`WARM_UP_FRACTION`] of the run.
+    pub warm_up_s: f64,
     /// Least-squares slope of resident memory over the samples after warm-up.
     pub rss_slope_mb_per_hour: Option<f64>,
     pub rss_slope_samples: usize,
     pub max_rss_slope_mb_per_hour: f64,
+    /// What the program holds from malloc, first and last sample (MB).
+    pub heap_in_use_mb_first: f64,
+    pub heap_in_use_mb_last: f64,
+    /// Least-squares slope of the heap in use after warm-up: a leak shows here, the
+    /// allocator's own growth (fragmentation) only in the resident memory.
+    pub heap_in_use_slope_mb_per_hour: Option<f64>,
+    /// What malloc has from the system at the end, in use or free (MB).
+    pub heap_mapped_mb_last: f64,
     pub threads: CountSummary,
     pub fds: CountSummary,
     pub frame_time: FrameTimeSummary,
@@ -439,11 +476,15 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
     let warm_from = duration_s * WARM_UP_FRACTION;
     let split = samples.partition_point(|s| s.t_s < warm_from);
     let warm = &samples[split..];
-    let points: Vec<(f64, f64)> = warm
-        .iter()
-        .map(|s| (s.t_s / SECONDS_PER_HOUR, s.rss_kb as f64 / KB))
-        .collect();
-    let slope = least_squares_slope(&points).filter(|_| points.len() >= MIN_SLOPE_SAMPLES);
+    let slope_of = |f: fn(&ProcSample) -> u64| {
+        let points: Vec<(f64, f64)> = warm
+            .iter()
+            .map(|s| (s.t_s / SECONDS_PER_HOUR, f(s) as f64 / KB))
+            .collect();
+        least_squares_slope(&points).filter(|_| points.len() >= MIN_SLOPE_SAMPLES)
+    };
+    let slope = slope_of(|s| s.rss_kb);
+    let heap_slope = slope_of(|s| s.heap_in_use_kb);
     let mb = |s: Option<&ProcSample>| s.map_or(0.0, |s| s.rss_kb as f64 / KB);
     let threads = count_summary(samples, warm, |s| s.threads);
     let fds = count_summary(samples, warm, |s| s.fds);
@@ -451,7 +492,7 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
     match slope {
         None => failures.push(format!(
             "too few samples after warm-up for a memory slope ({}, need {MIN_SLOPE_SAMPLES}): run longer or sample more often",
-            points.len()
+            warm.len()
         )),
         Some(s) if s > args.max_rss_slope => failures.push(format!(
             "resident memory grows {s:.2} MB per hour after warm-up (bound {} MB per hour)",
@@ -486,9 +527,16 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
             .iter()
             .map(|s| s.rss_kb as f64 / KB)
             .fold(0.0, f64::max),
+        warm_up_s: warm_from,
+        rss_peak_mb_after_warm_up: warm.first().map_or(0.0, |s| s.rss_peak_kb as f64 / KB),
+        rss_peak_mb_last: samples.last().map_or(0.0, |s| s.rss_peak_kb as f64 / KB),
         rss_slope_mb_per_hour: slope,
-        rss_slope_samples: points.len(),
+        rss_slope_samples: warm.len(),
         max_rss_slope_mb_per_hour: args.max_rss_slope,
+        heap_in_use_mb_first: samples.first().map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
+        heap_in_use_mb_last: samples.last().map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
+        heap_in_use_slope_mb_per_hour: heap_slope,
+        heap_mapped_mb_last: samples.last().map_or(0.0, |s| s.heap_mapped_kb as f64 / KB),
         threads,
         fds,
         frame_time: frame_time_summary(m),
@@ -540,6 +588,7 @@ fn run_visits(
         m.end_visit(visit_has_result(&summary));
         // The shopper has left: the kiosk forgets them (its idle timeout's ClearSubject).
         proc_.reset_subject();
+        m.sample_if_due();
         if let Some(e) = &m.sample_error {
             bail!("sampling the process failed: {e}");
         }
@@ -563,8 +612,16 @@ fn print_summary(s: &SoakSummary) {
         s.samples
     );
     println!(
-        "resident memory: {:.1} MB first, {:.1} MB last, {:.1} MB max; slope after warm-up {} MB/hour over {} samples (bound {})",
-        s.rss_mb_first, s.rss_mb_last, s.rss_mb_max, opt(s.rss_slope_mb_per_hour, ""), s.rss_slope_samples, s.max_rss_slope_mb_per_hour
+        "resident memory: {:.1} MB first, {:.1} MB last, {:.1} MB max; slope after the {:.1}-minute warm-up {} MB/hour over {} samples (bound {})",
+        s.rss_mb_first, s.rss_mb_last, s.rss_mb_max, s.warm_up_s / 60.0, opt(s.rss_slope_mb_per_hour, ""), s.rss_slope_samples, s.max_rss_slope_mb_per_hour
+    );
+    println!(
+        "peak resident memory within visits (VmHWM): {:.1} MB after warm-up, {:.1} MB at the end",
+        s.rss_peak_mb_after_warm_up, s.rss_peak_mb_last
+    );
+    println!(
+        "heap in use (malloc): {:.1} MB first, {:.1} MB last, slope after warm-up {} MB/hour; {:.1} MB mapped by malloc at the end",
+        s.heap_in_use_mb_first, s.heap_in_use_mb_last, opt(s.heap_in_use_slope_mb_per_hour, ""), s.heap_mapped_mb_last
     );
     for (name, c) in [("threads", s.threads), ("open files", s.fds)] {
         println!(
@@ -591,6 +648,27 @@ fn print_summary(s: &SoakSummary) {
     }
 }
 
+/// Writes the samples as CSV (seconds, MB, counts).
+fn write_samples_csv(path: &Path, samples: &[ProcSample]) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut out =
+        String::from("t_s,rss_mb,rss_peak_mb,heap_in_use_mb,heap_mapped_mb,threads,fds\n");
+    for s in samples {
+        let _ = writeln!(
+            out,
+            "{:.1},{:.3},{:.3},{:.3},{:.3},{},{}",
+            s.t_s,
+            s.rss_kb as f64 / KB,
+            s.rss_peak_kb as f64 / KB,
+            s.heap_in_use_kb as f64 / KB,
+            s.heap_mapped_kb as f64 / KB,
+            s.threads,
+            s.fds
+        );
+    }
+    std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))
+}
+
 /// `fitstation soak`.
 ///
 /// # Errors
@@ -604,6 +682,9 @@ pub fn run(args: &SoakArgs) -> anyhow::Result<()> {
     run_visits(&mut meter, &mut proc_, pass_len)?;
     meter.finish()?;
     let summary = summarise(&meter, &args.recording, args);
+    if let Some(path) = &args.samples_csv {
+        write_samples_csv(path, &meter.samples)?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {

@@ -532,6 +532,9 @@ impl FrameProcessor for StationProcessor {
         self.pose.clear();
         self.side_limbs.reset();
         self.person_masks.reset(&mut self.silhouettes);
+        // The shopper has left: give the allocator's free pages back to the system, or
+        // the heap keeps growing in steps with fragmentation (see crate::io::heap).
+        crate::io::heap::release_free_memory();
     }
 }
 
