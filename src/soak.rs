@@ -469,12 +469,28 @@ fn frame_time_summary(m: &MeteredSource<'_>) -> FrameTimeSummary {
     }
 }
 
-/// Builds the summary and decides pass or fail.
-fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSummary {
-    let samples = &m.samples;
+/// The samples' trends after warm-up and the soak's verdict on them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// End of the warm-up (s).
+    pub warm_up_s: f64,
+    /// Samples after warm-up.
+    pub warm_samples: usize,
+    pub rss_slope_mb_per_hour: Option<f64>,
+    pub heap_in_use_slope_mb_per_hour: Option<f64>,
+    pub threads: CountSummary,
+    pub fds: CountSummary,
+    /// Why the soak failed (empty: passed).
+    pub failures: Vec<String>,
+}
+
+/// Judges a run from its samples (in time order) and its visits: the memory slope after
+/// warm-up against `max_rss_slope` (MB per hour), threads and open files no higher at
+/// the end than after warm-up, a result for every visit.
+pub fn judge(samples: &[ProcSample], visits: u64, results: u64, max_rss_slope: f64) -> Verdict {
     let duration_s = samples.last().map_or(0.0, |s| s.t_s);
-    let warm_from = duration_s * WARM_UP_FRACTION;
-    let split = samples.partition_point(|s| s.t_s < warm_from);
+    let warm_up_s = duration_s * WARM_UP_FRACTION;
+    let split = samples.partition_point(|s| s.t_s < warm_up_s);
     let warm = &samples[split..];
     let slope_of = |f: fn(&ProcSample) -> u64| {
         let points: Vec<(f64, f64)> = warm
@@ -484,8 +500,6 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
         least_squares_slope(&points).filter(|_| points.len() >= MIN_SLOPE_SAMPLES)
     };
     let slope = slope_of(|s| s.rss_kb);
-    let heap_slope = slope_of(|s| s.heap_in_use_kb);
-    let mb = |s: Option<&ProcSample>| s.map_or(0.0, |s| s.rss_kb as f64 / KB);
     let threads = count_summary(samples, warm, |s| s.threads);
     let fds = count_summary(samples, warm, |s| s.fds);
     let mut failures = Vec::new();
@@ -494,9 +508,8 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
             "too few samples after warm-up for a memory slope ({}, need {MIN_SLOPE_SAMPLES}): run longer or sample more often",
             warm.len()
         )),
-        Some(s) if s > args.max_rss_slope => failures.push(format!(
-            "resident memory grows {s:.2} MB per hour after warm-up (bound {} MB per hour)",
-            args.max_rss_slope
+        Some(s) if s > max_rss_slope => failures.push(format!(
+            "resident memory grows {s:.2} MB per hour after warm-up (bound {max_rss_slope} MB per hour)"
         )),
         Some(_) => {}
     }
@@ -508,13 +521,31 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
             ));
         }
     }
-    let lost = m.visits - m.results;
+    let lost = visits.saturating_sub(results);
     if lost > 0 {
-        failures.push(format!("{lost} of {} visits produced no result", m.visits));
+        failures.push(format!("{lost} of {visits} visits produced no result"));
     }
-    if m.visits == 0 {
+    if visits == 0 {
         failures.push("no visit was completed".into());
     }
+    Verdict {
+        warm_up_s,
+        warm_samples: warm.len(),
+        rss_slope_mb_per_hour: slope,
+        heap_in_use_slope_mb_per_hour: slope_of(|s| s.heap_in_use_kb),
+        threads,
+        fds,
+        failures,
+    }
+}
+
+/// Builds the summary and decides pass or fail.
+fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSummary {
+    let samples = &m.samples;
+    let duration_s = samples.last().map_or(0.0, |s| s.t_s);
+    let v = judge(samples, m.visits, m.results, args.max_rss_slope);
+    let warm = &samples[samples.len() - v.warm_samples..];
+    let mb = |s: Option<&ProcSample>| s.map_or(0.0, |s| s.rss_kb as f64 / KB);
     SoakSummary {
         recording: recording.display().to_string(),
         planned_minutes: args.minutes,
@@ -527,24 +558,26 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
             .iter()
             .map(|s| s.rss_kb as f64 / KB)
             .fold(0.0, f64::max),
-        warm_up_s: warm_from,
+        warm_up_s: v.warm_up_s,
         rss_peak_mb_after_warm_up: warm.first().map_or(0.0, |s| s.rss_peak_kb as f64 / KB),
         rss_peak_mb_last: samples.last().map_or(0.0, |s| s.rss_peak_kb as f64 / KB),
-        rss_slope_mb_per_hour: slope,
-        rss_slope_samples: warm.len(),
+        rss_slope_mb_per_hour: v.rss_slope_mb_per_hour,
+        rss_slope_samples: v.warm_samples,
         max_rss_slope_mb_per_hour: args.max_rss_slope,
-        heap_in_use_mb_first: samples.first().map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
+        heap_in_use_mb_first: samples
+            .first()
+            .map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
         heap_in_use_mb_last: samples.last().map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
-        heap_in_use_slope_mb_per_hour: heap_slope,
+        heap_in_use_slope_mb_per_hour: v.heap_in_use_slope_mb_per_hour,
         heap_mapped_mb_last: samples.last().map_or(0.0, |s| s.heap_mapped_kb as f64 / KB),
-        threads,
-        fds,
+        threads: v.threads,
+        fds: v.fds,
         frame_time: frame_time_summary(m),
         visits: m.visits,
         results: m.results,
-        lost_results: lost,
-        passed: failures.is_empty(),
-        failures,
+        lost_results: m.visits.saturating_sub(m.results),
+        passed: v.failures.is_empty(),
+        failures: v.failures,
     }
 }
 
@@ -586,16 +619,19 @@ fn run_visits(
     while m.elapsed_s() < m.plan.run_s {
         let summary = run_offline(m, proc_, Some(pass_len), false);
         m.end_visit(visit_has_result(&summary));
+        if m.visits == 1 && summary.report["frames"]["with_subject"].as_u64() == Some(0) {
+            eprintln!(
+                "warning: the first pass of the recording showed nobody: every visit will be lost"
+            );
+        }
+        // The visit's report is handed on (here: judged) and dropped before the sample,
+        // as the closing sample sees it.
+        drop(summary);
         // The shopper has left: the kiosk forgets them (its idle timeout's ClearSubject).
         proc_.reset_subject();
         m.sample_if_due();
         if let Some(e) = &m.sample_error {
             bail!("sampling the process failed: {e}");
-        }
-        if m.visits == 1 && summary.report["frames"]["with_subject"].as_u64() == Some(0) {
-            eprintln!(
-                "warning: the first pass of the recording showed nobody: every visit will be lost"
-            );
         }
     }
     Ok(())
@@ -706,6 +742,62 @@ mod tests {
         let s = least_squares_slope(&pts).unwrap_or(f64::NAN);
         assert!((s - 0.5).abs() < 1e-12, "{s}");
         assert_eq!(least_squares_slope(&[(1.0, 2.0)]), None);
+    }
+
+    /// An hour of samples every 5 s: a start-up ramp in the first 10 minutes, then
+    /// `rss_at(t)` (MB).
+    fn hour_of_samples(rss_at: impl Fn(f64) -> f64) -> Vec<ProcSample> {
+        (0..=720)
+            .map(|k| {
+                let t_s = k as f64 * 5.0;
+                let ramp = if t_s < 600.0 {
+                    120.0 * (1.0 - t_s / 600.0)
+                } else {
+                    0.0
+                };
+                let rss_kb = ((rss_at(t_s) - ramp) * KB) as u64;
+                ProcSample {
+                    t_s,
+                    rss_kb,
+                    rss_peak_kb: rss_kb,
+                    threads: 1,
+                    fds: 8,
+                    heap_in_use_kb: 150 * 1024,
+                    heap_mapped_kb: 190 * 1024,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn judge_passes_a_flat_hour_after_its_ramp() {
+        // Flat at 184.5 MB with 0.1 MB of jitter, after a 120 MB ramp during warm-up.
+        let s = hour_of_samples(|t| 184.5 + 0.1 * (t / 7.0).sin());
+        let v = judge(&s, 2500, 2500, DEFAULT_MAX_RSS_SLOPE_MB_PER_H);
+        assert!(v.failures.is_empty(), "{:?}", v.failures);
+        let slope = v.rss_slope_mb_per_hour.unwrap_or(f64::NAN);
+        assert!(slope.abs() < 0.1, "{slope}");
+    }
+
+    #[test]
+    fn judge_fails_the_steps_seen_before_the_fix() {
+        // The 20-minute run of session 11: +2.5 MB at minute 8 and +2.1 MB at minute 11,
+        // stretched over the hour (steps at minutes 24 and 33): well over 1 MB per hour.
+        let s = hour_of_samples(|t| {
+            235.0 + if t >= 1440.0 { 2.5 } else { 0.0 } + if t >= 1980.0 { 2.1 } else { 0.0 }
+        });
+        let v = judge(&s, 2500, 2500, DEFAULT_MAX_RSS_SLOPE_MB_PER_H);
+        let slope = v.rss_slope_mb_per_hour.unwrap_or(f64::NAN);
+        assert!(slope > 1.0, "{slope}");
+        assert_eq!(v.failures.len(), 1, "{:?}", v.failures);
+        // A lost result, a thread and an open file that stay fail too.
+        let mut s = hour_of_samples(|_| 184.5);
+        if let Some(last) = s.last_mut() {
+            last.threads = 2;
+            last.fds = 9;
+        }
+        let v = judge(&s, 2500, 2499, DEFAULT_MAX_RSS_SLOPE_MB_PER_H);
+        assert_eq!(v.failures.len(), 3, "{:?}", v.failures);
     }
 
     #[test]
