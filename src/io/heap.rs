@@ -4,19 +4,21 @@
 //!
 //! Why: each frame pair allocates and frees image-sized buffers (the decoded frames,
 //! masks, scratch of the stages). glibc serves the first of them with `mmap`, raises its
-//! mmap threshold to their size when the first one is freed, and from then on carves
-//! them out of the main heap, where they interleave with longer-lived allocations. The
-//! heap's free space then grows in steps as the pattern shifts, and glibc keeps it:
-//! `fitstation soak` measured the heap in use flat at the same point of every visit
-//! (168.7 MB, to 0.1 MB, over 8 minutes) while malloc's heap grew 206.2 -> 206.6 ->
-//! 209.0 MB and the resident memory with it (20 minutes: +4.6 MB in two steps, 21.6 MB
-//! per hour). Pinning the mmap threshold (`M_MMAP_THRESHOLD` 128 kB to 2 MB) stops
-//! that growth but maps and faults in every large buffer afresh: 17 % (2 MB) to 50 %
-//! (128 kB) more CPU time per frame pair, measured on the same soak. Releasing the free
-//! pages once per visit, when the shopper has left, costs one `malloc_trim` and the
-//! page faults of refilling the working set at the next visit: 26.7 ms of CPU per frame
-//! pair with it against 27.6 ms without (6-minute soaks on the shared machine, so
-//! within noise), and the resident memory between visits stays at 184.4-184.6 MB.
+//! mmap threshold to their size when the first one is freed (mallopt(3), dynamic mmap
+//! threshold), and from then on carves them out of the main heap, where they interleave
+//! with longer-lived allocations. The heap's free space then grows in steps as the
+//! pattern shifts, and glibc keeps it: `fitstation soak` measured the heap in use flat
+//! over 8 minutes (two values to 0.1 MB, 149.9 and 168.7 MB, by where in a visit a
+//! sample fell) while malloc's heap grew 206.2 -> 206.6 -> 209.0 MB and the resident
+//! memory with it, 33 MB above (20 minutes: +4.6 MB in two steps, 21.6 MB per hour).
+//! Pinning the mmap threshold (`M_MMAP_THRESHOLD` 128 kB to 2 MB, which also stops its
+//! adjustment) stopped the steps in 5-minute runs but maps and faults in every large
+//! buffer afresh: 17 % (2 MB) to 50 % (128 kB) more CPU time per frame pair, measured
+//! on the same soak. Releasing the free pages once per visit, when the shopper has
+//! left, costs one `malloc_trim` and the page faults of refilling the working set at
+//! the next visit: 26.7 ms of CPU per frame pair with it against 27.6 ms without
+//! (6-minute soaks on the shared machine, so within noise), and the resident memory
+//! between visits stays at 184.4-184.6 MB.
 
 /// Returns the allocator's free pages to the system (glibc `malloc_trim(0)`, all
 /// arenas, which it locks while it walks them). Call it when the station is idle, e.g.
