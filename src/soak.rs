@@ -5,9 +5,12 @@
 //! does when nobody is on the mark ([`FrameProcessor::reset_subject`], the flow's
 //! `ClearSubject`).
 //!
-//! Every few seconds the run samples its own resident memory (`VmRSS`), thread count
-//! (`Threads`, both from `/proc/self/status`) and open files (entries of
-//! `/proc/self/fd`); every frame pair's wall time (decoding plus the station) is kept in
+//! Every few seconds, at the end of a visit (the same moment of the cycle each time),
+//! the run samples its own resident memory (`VmRSS`, and the peak `VmHWM`), thread count
+//! (`Threads`, all from `/proc/self/status`), open files (entries of `/proc/self/fd`)
+//! and what the program holds from malloc (glibc's `mallinfo2`), which tells a leak
+//! (the heap in use grows) from the allocator's own growth (only the resident memory
+//! grows); every frame pair's wall time (decoding plus the station) is kept in
 //! a fixed-size histogram for the first and the last timing window. At the end it
 //! prints the summary and fails (exit code 1) when the memory grows faster than the
 //! bound after warm-up, the thread or file counts grow, or a visit produced no result.
@@ -71,6 +74,9 @@ pub struct SoakArgs {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Also write every sample (time, RSS, heap, threads, files) to this CSV file.
+    #[arg(long, value_name = "FILE")]
+    pub samples_csv: Option<PathBuf>,
 }
 
 /// One sample of the process's resources.
@@ -79,8 +85,16 @@ pub struct ProcSample {
     /// Seconds since the soak started.
     pub t_s: f64,
     pub rss_kb: u64,
+    /// Peak resident memory so far (`VmHWM`, kB): the visits' highs between samples.
+    pub rss_peak_kb: u64,
     pub threads: u64,
     pub fds: u64,
+    /// Bytes the program holds from malloc (kB; glibc's `mallinfo2`: `uordblks +
+    /// hblkhd`). Flat while `rss_kb` climbs means the allocator's free space grew
+    /// (fragmentation), not the program's data.
+    pub heap_in_use_kb: u64,
+    /// Memory malloc has from the system (kB; `arena + hblkhd`), in use or free.
+    pub heap_mapped_kb: u64,
 }
 
 /// Reads resident memory and threads from `/proc/self/status` and counts `/proc/self/fd`.
@@ -101,11 +115,16 @@ pub fn read_proc_sample(t_s: f64) -> anyhow::Result<ProcSample> {
     let fds = std::fs::read_dir("/proc/self/fd")
         .context("cannot list /proc/self/fd")?
         .count() as u64;
+    let heap = crate::io::heap::heap_usage();
+    let (heap_in_use_kb, heap_mapped_kb) = (heap.in_use_bytes / 1024, heap.mapped_bytes / 1024);
     Ok(ProcSample {
         t_s,
         rss_kb: field("VmRSS:")?,
+        rss_peak_kb: field("VmHWM:")?,
         threads: field("Threads:")?,
         fds,
+        heap_in_use_kb,
+        heap_mapped_kb,
     })
 }
 
@@ -268,7 +287,11 @@ impl<'a> MeteredSource<'a> {
         }
     }
 
-    /// Takes a sample when one is due (and a progress line when one is due).
+    /// Takes a sample when one is due (and a progress line when one is due). Called
+    /// between visits, so that every sample sees the station in the same state (nobody on
+    /// the mark): within a visit the heap swings by the frames' working set (about 20 MB),
+    /// which sampled at random points of the visits would bury a slope of 1 MB per hour.
+    /// The peak within visits is `VmHWM`.
     fn sample_if_due(&mut self) {
         let t = self.elapsed_s();
         if t < self.next_sample_s || self.sample_error.is_some() {
@@ -291,10 +314,12 @@ impl<'a> MeteredSource<'a> {
     fn say_progress(&self, t: f64) {
         if let Some(s) = self.samples.last() {
             eprintln!(
-                "soak {:.1}/{:.1} min: rss {:.1} MB, {} threads, {} fds, {} visits, {} results",
+                "soak {:.1}/{:.1} min: rss {:.1} MB (heap {:.1} in use of {:.1}), {} threads, {} fds, {} visits, {} results",
                 t / 60.0,
                 self.plan.run_s / 60.0,
                 s.rss_kb as f64 / KB,
+                s.heap_in_use_kb as f64 / KB,
+                s.heap_mapped_kb as f64 / KB,
                 s.threads,
                 s.fds,
                 self.visits,
@@ -326,7 +351,6 @@ impl<'a> MeteredSource<'a> {
 impl FrameSource for MeteredSource<'_> {
     fn next_pair(&mut self) -> Result<Option<FramePair>, SourceError> {
         self.time_previous_pair(Instant::now());
-        self.sample_if_due();
         self.inner.next_pair()
     }
     fn calibration(&self) -> Option<&crate::camera::StationCalibration> {
@@ -374,10 +398,23 @@ pub struct SoakSummary {
     pub rss_mb_first: f64,
     pub rss_mb_last: f64,
     pub rss_mb_max: f64,
+    /// Peak resident memory (`VmHWM`) at the end of the warm-up and at the end (MB).
+    pub rss_peak_mb_after_warm_up: f64,
+    pub rss_peak_mb_last: f64,
+    /// End of the warm-up (s): the first [`WARM_UP_FRACTION`] of the run.
+    pub warm_up_s: f64,
     /// Least-squares slope of resident memory over the samples after warm-up.
     pub rss_slope_mb_per_hour: Option<f64>,
     pub rss_slope_samples: usize,
     pub max_rss_slope_mb_per_hour: f64,
+    /// What the program holds from malloc, first and last sample (MB).
+    pub heap_in_use_mb_first: f64,
+    pub heap_in_use_mb_last: f64,
+    /// Least-squares slope of the heap in use after warm-up: a leak shows here, the
+    /// allocator's own growth (fragmentation) only in the resident memory.
+    pub heap_in_use_slope_mb_per_hour: Option<f64>,
+    /// What malloc has from the system at the end, in use or free (MB).
+    pub heap_mapped_mb_last: f64,
     pub threads: CountSummary,
     pub fds: CountSummary,
     pub frame_time: FrameTimeSummary,
@@ -432,30 +469,47 @@ fn frame_time_summary(m: &MeteredSource<'_>) -> FrameTimeSummary {
     }
 }
 
-/// Builds the summary and decides pass or fail.
-fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSummary {
-    let samples = &m.samples;
+/// The samples' trends after warm-up and the soak's verdict on them.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Verdict {
+    /// End of the warm-up (s).
+    pub warm_up_s: f64,
+    /// Samples after warm-up.
+    pub warm_samples: usize,
+    pub rss_slope_mb_per_hour: Option<f64>,
+    pub heap_in_use_slope_mb_per_hour: Option<f64>,
+    pub threads: CountSummary,
+    pub fds: CountSummary,
+    /// Why the soak failed (empty: passed).
+    pub failures: Vec<String>,
+}
+
+/// Judges a run from its samples (in time order) and its visits: the memory slope after
+/// warm-up against `max_rss_slope` (MB per hour), threads and open files no higher at
+/// the end than after warm-up, a result for every visit.
+pub fn judge(samples: &[ProcSample], visits: u64, results: u64, max_rss_slope: f64) -> Verdict {
     let duration_s = samples.last().map_or(0.0, |s| s.t_s);
-    let warm_from = duration_s * WARM_UP_FRACTION;
-    let split = samples.partition_point(|s| s.t_s < warm_from);
+    let warm_up_s = duration_s * WARM_UP_FRACTION;
+    let split = samples.partition_point(|s| s.t_s < warm_up_s);
     let warm = &samples[split..];
-    let points: Vec<(f64, f64)> = warm
-        .iter()
-        .map(|s| (s.t_s / SECONDS_PER_HOUR, s.rss_kb as f64 / KB))
-        .collect();
-    let slope = least_squares_slope(&points).filter(|_| points.len() >= MIN_SLOPE_SAMPLES);
-    let mb = |s: Option<&ProcSample>| s.map_or(0.0, |s| s.rss_kb as f64 / KB);
+    let slope_of = |f: fn(&ProcSample) -> u64| {
+        let points: Vec<(f64, f64)> = warm
+            .iter()
+            .map(|s| (s.t_s / SECONDS_PER_HOUR, f(s) as f64 / KB))
+            .collect();
+        least_squares_slope(&points).filter(|_| points.len() >= MIN_SLOPE_SAMPLES)
+    };
+    let slope = slope_of(|s| s.rss_kb);
     let threads = count_summary(samples, warm, |s| s.threads);
     let fds = count_summary(samples, warm, |s| s.fds);
     let mut failures = Vec::new();
     match slope {
         None => failures.push(format!(
             "too few samples after warm-up for a memory slope ({}, need {MIN_SLOPE_SAMPLES}): run longer or sample more often",
-            points.len()
+            warm.len()
         )),
-        Some(s) if s > args.max_rss_slope => failures.push(format!(
-            "resident memory grows {s:.2} MB per hour after warm-up (bound {} MB per hour)",
-            args.max_rss_slope
+        Some(s) if s > max_rss_slope => failures.push(format!(
+            "resident memory grows {s:.2} MB per hour after warm-up (bound {max_rss_slope} MB per hour)"
         )),
         Some(_) => {}
     }
@@ -467,13 +521,31 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
             ));
         }
     }
-    let lost = m.visits - m.results;
+    let lost = visits.saturating_sub(results);
     if lost > 0 {
-        failures.push(format!("{lost} of {} visits produced no result", m.visits));
+        failures.push(format!("{lost} of {visits} visits produced no result"));
     }
-    if m.visits == 0 {
+    if visits == 0 {
         failures.push("no visit was completed".into());
     }
+    Verdict {
+        warm_up_s,
+        warm_samples: warm.len(),
+        rss_slope_mb_per_hour: slope,
+        heap_in_use_slope_mb_per_hour: slope_of(|s| s.heap_in_use_kb),
+        threads,
+        fds,
+        failures,
+    }
+}
+
+/// Builds the summary and decides pass or fail.
+fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSummary {
+    let samples = &m.samples;
+    let duration_s = samples.last().map_or(0.0, |s| s.t_s);
+    let v = judge(samples, m.visits, m.results, args.max_rss_slope);
+    let warm = &samples[samples.len() - v.warm_samples..];
+    let mb = |s: Option<&ProcSample>| s.map_or(0.0, |s| s.rss_kb as f64 / KB);
     SoakSummary {
         recording: recording.display().to_string(),
         planned_minutes: args.minutes,
@@ -486,17 +558,26 @@ fn summarise(m: &MeteredSource<'_>, recording: &Path, args: &SoakArgs) -> SoakSu
             .iter()
             .map(|s| s.rss_kb as f64 / KB)
             .fold(0.0, f64::max),
-        rss_slope_mb_per_hour: slope,
-        rss_slope_samples: points.len(),
+        warm_up_s: v.warm_up_s,
+        rss_peak_mb_after_warm_up: warm.first().map_or(0.0, |s| s.rss_peak_kb as f64 / KB),
+        rss_peak_mb_last: samples.last().map_or(0.0, |s| s.rss_peak_kb as f64 / KB),
+        rss_slope_mb_per_hour: v.rss_slope_mb_per_hour,
+        rss_slope_samples: v.warm_samples,
         max_rss_slope_mb_per_hour: args.max_rss_slope,
-        threads,
-        fds,
+        heap_in_use_mb_first: samples
+            .first()
+            .map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
+        heap_in_use_mb_last: samples.last().map_or(0.0, |s| s.heap_in_use_kb as f64 / KB),
+        heap_in_use_slope_mb_per_hour: v.heap_in_use_slope_mb_per_hour,
+        heap_mapped_mb_last: samples.last().map_or(0.0, |s| s.heap_mapped_kb as f64 / KB),
+        threads: v.threads,
+        fds: v.fds,
         frame_time: frame_time_summary(m),
         visits: m.visits,
         results: m.results,
-        lost_results: lost,
-        passed: failures.is_empty(),
-        failures,
+        lost_results: m.visits.saturating_sub(m.results),
+        passed: v.failures.is_empty(),
+        failures: v.failures,
     }
 }
 
@@ -538,15 +619,19 @@ fn run_visits(
     while m.elapsed_s() < m.plan.run_s {
         let summary = run_offline(m, proc_, Some(pass_len), false);
         m.end_visit(visit_has_result(&summary));
-        // The shopper has left: the kiosk forgets them (its idle timeout's ClearSubject).
-        proc_.reset_subject();
-        if let Some(e) = &m.sample_error {
-            bail!("sampling the process failed: {e}");
-        }
         if m.visits == 1 && summary.report["frames"]["with_subject"].as_u64() == Some(0) {
             eprintln!(
                 "warning: the first pass of the recording showed nobody: every visit will be lost"
             );
+        }
+        // The visit's report is handed on (here: judged) and dropped before the sample,
+        // as the closing sample sees it.
+        drop(summary);
+        // The shopper has left: the kiosk forgets them (its idle timeout's ClearSubject).
+        proc_.reset_subject();
+        m.sample_if_due();
+        if let Some(e) = &m.sample_error {
+            bail!("sampling the process failed: {e}");
         }
     }
     Ok(())
@@ -563,8 +648,16 @@ fn print_summary(s: &SoakSummary) {
         s.samples
     );
     println!(
-        "resident memory: {:.1} MB first, {:.1} MB last, {:.1} MB max; slope after warm-up {} MB/hour over {} samples (bound {})",
-        s.rss_mb_first, s.rss_mb_last, s.rss_mb_max, opt(s.rss_slope_mb_per_hour, ""), s.rss_slope_samples, s.max_rss_slope_mb_per_hour
+        "resident memory: {:.1} MB first, {:.1} MB last, {:.1} MB max; slope after the {:.1}-minute warm-up {} MB/hour over {} samples (bound {})",
+        s.rss_mb_first, s.rss_mb_last, s.rss_mb_max, s.warm_up_s / 60.0, opt(s.rss_slope_mb_per_hour, ""), s.rss_slope_samples, s.max_rss_slope_mb_per_hour
+    );
+    println!(
+        "peak resident memory within visits (VmHWM): {:.1} MB after warm-up, {:.1} MB at the end",
+        s.rss_peak_mb_after_warm_up, s.rss_peak_mb_last
+    );
+    println!(
+        "heap in use (malloc): {:.1} MB first, {:.1} MB last, slope after warm-up {} MB/hour; {:.1} MB mapped by malloc at the end",
+        s.heap_in_use_mb_first, s.heap_in_use_mb_last, opt(s.heap_in_use_slope_mb_per_hour, ""), s.heap_mapped_mb_last
     );
     for (name, c) in [("threads", s.threads), ("open files", s.fds)] {
         println!(
@@ -591,6 +684,27 @@ fn print_summary(s: &SoakSummary) {
     }
 }
 
+/// Writes the samples as CSV (seconds, MB, counts).
+fn write_samples_csv(path: &Path, samples: &[ProcSample]) -> anyhow::Result<()> {
+    use std::fmt::Write as _;
+    let mut out =
+        String::from("t_s,rss_mb,rss_peak_mb,heap_in_use_mb,heap_mapped_mb,threads,fds\n");
+    for s in samples {
+        let _ = writeln!(
+            out,
+            "{:.1},{:.3},{:.3},{:.3},{:.3},{},{}",
+            s.t_s,
+            s.rss_kb as f64 / KB,
+            s.rss_peak_kb as f64 / KB,
+            s.heap_in_use_kb as f64 / KB,
+            s.heap_mapped_kb as f64 / KB,
+            s.threads,
+            s.fds
+        );
+    }
+    std::fs::write(path, out).with_context(|| format!("cannot write {}", path.display()))
+}
+
 /// `fitstation soak`.
 ///
 /// # Errors
@@ -604,6 +718,9 @@ pub fn run(args: &SoakArgs) -> anyhow::Result<()> {
     run_visits(&mut meter, &mut proc_, pass_len)?;
     meter.finish()?;
     let summary = summarise(&meter, &args.recording, args);
+    if let Some(path) = &args.samples_csv {
+        write_samples_csv(path, &meter.samples)?;
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
@@ -625,6 +742,62 @@ mod tests {
         let s = least_squares_slope(&pts).unwrap_or(f64::NAN);
         assert!((s - 0.5).abs() < 1e-12, "{s}");
         assert_eq!(least_squares_slope(&[(1.0, 2.0)]), None);
+    }
+
+    /// An hour of samples every 5 s: a start-up ramp in the first 10 minutes, then
+    /// `rss_at(t)` (MB).
+    fn hour_of_samples(rss_at: impl Fn(f64) -> f64) -> Vec<ProcSample> {
+        (0..=720)
+            .map(|k| {
+                let t_s = k as f64 * 5.0;
+                let ramp = if t_s < 600.0 {
+                    120.0 * (1.0 - t_s / 600.0)
+                } else {
+                    0.0
+                };
+                let rss_kb = ((rss_at(t_s) - ramp) * KB) as u64;
+                ProcSample {
+                    t_s,
+                    rss_kb,
+                    rss_peak_kb: rss_kb,
+                    threads: 1,
+                    fds: 8,
+                    heap_in_use_kb: 150 * 1024,
+                    heap_mapped_kb: 190 * 1024,
+                }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn judge_passes_a_flat_hour_after_its_ramp() {
+        // Flat at 184.5 MB with 0.1 MB of jitter, after a 120 MB ramp during warm-up.
+        let s = hour_of_samples(|t| 184.5 + 0.1 * (t / 7.0).sin());
+        let v = judge(&s, 2500, 2500, DEFAULT_MAX_RSS_SLOPE_MB_PER_H);
+        assert!(v.failures.is_empty(), "{:?}", v.failures);
+        let slope = v.rss_slope_mb_per_hour.unwrap_or(f64::NAN);
+        assert!(slope.abs() < 0.1, "{slope}");
+    }
+
+    #[test]
+    fn judge_fails_the_steps_seen_before_the_fix() {
+        // The 20-minute run of session 11: +2.5 MB at minute 8 and +2.1 MB at minute 11,
+        // stretched over the hour (steps at minutes 24 and 33): well over 1 MB per hour.
+        let s = hour_of_samples(|t| {
+            235.0 + if t >= 1440.0 { 2.5 } else { 0.0 } + if t >= 1980.0 { 2.1 } else { 0.0 }
+        });
+        let v = judge(&s, 2500, 2500, DEFAULT_MAX_RSS_SLOPE_MB_PER_H);
+        let slope = v.rss_slope_mb_per_hour.unwrap_or(f64::NAN);
+        assert!(slope > 1.0, "{slope}");
+        assert_eq!(v.failures.len(), 1, "{:?}", v.failures);
+        // A lost result, a thread and an open file that stay fail too.
+        let mut s = hour_of_samples(|_| 184.5);
+        if let Some(last) = s.last_mut() {
+            last.threads = 2;
+            last.fds = 9;
+        }
+        let v = judge(&s, 2500, 2499, DEFAULT_MAX_RSS_SLOPE_MB_PER_H);
+        assert_eq!(v.failures.len(), 3, "{:?}", v.failures);
     }
 
     #[test]

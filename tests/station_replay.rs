@@ -420,7 +420,11 @@ fn a_pose_settled_after_the_first_fit_has_the_body_chosen_again() {
     // still-picture gate (`station::motion`) skips the frame where the arms move out and
     // the body is chosen a frame later (issue 19: the first fit's choice is
     // frame-sensitive).
-    for (key, tol) in [("hip_girth", 20.0), ("waist_girth", 20.0), ("chest_girth", 30.0)] {
+    for (key, tol) in [
+        ("hip_girth", 20.0),
+        ("waist_girth", 20.0),
+        ("chest_girth", 30.0),
+    ] {
         let got = report["measurements_mm"][key].as_f64().unwrap();
         let want = truth.measurements_mm[key];
         eprintln!("{key}: {got:.1} mm, truth {want:.1} mm");

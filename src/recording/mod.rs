@@ -346,7 +346,11 @@ impl Recording {
     pub fn frame_pair(&mut self, k: usize) -> Result<(RgbImage, RgbImage), RecordingError> {
         let r = self.read_pair(k);
         if let Err(e) = &r {
-            self.warnings.push(format!("frame {k}: {e}"));
+            // Once per frame: a looping replay reads a bad frame again on every pass.
+            let w = format!("frame {k}: {e}");
+            if !self.warnings.contains(&w) {
+                self.warnings.push(w);
+            }
         }
         r
     }

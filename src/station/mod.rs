@@ -682,6 +682,9 @@ impl FrameProcessor for StationProcessor {
         self.side_limbs.reset();
         self.person_masks.reset(&mut self.silhouettes);
         self.motion.reset();
+        // The shopper has left: give the allocator's free pages back to the system, or
+        // the heap keeps growing in steps with fragmentation (see crate::io::heap).
+        crate::io::heap::release_free_memory();
     }
 }
 

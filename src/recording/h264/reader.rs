@@ -340,7 +340,11 @@ impl Mp4VideoReader {
                     return Ok(img);
                 }
                 Err(e) if at == k => return Err(e),
-                Err(e) => self.warnings.push(e.to_string()),
+                // Once each: a looping replay decodes the same bad sample every pass.
+                Err(e) if !self.warnings.contains(&e.to_string()) => {
+                    self.warnings.push(e.to_string())
+                }
+                Err(_) => {}
                 Ok(_) => {}
             }
         }
