@@ -10,11 +10,10 @@ use std::path::{Path, PathBuf};
 const FIRST_SEED: u64 = 20500;
 const SET_COUNT: usize = 4;
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fitstation-passer-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+    common::tmp_dir("passer", name)
 }
 
 fn config(member: usize, passer_by: bool, subject_frames: usize) -> SynthConfig {
@@ -98,18 +97,6 @@ fn the_passer_by_is_in_the_pictures_and_not_in_the_truth() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
-/// What the station reported for a recording: its report.json.
-fn replay(rec: &Path) -> serde_json::Value {
-    use fitstation::cli::{run_offline, RecordingSource};
-    use fitstation::station::{default_library, StationOptions, StationProcessor};
-    let mut src = RecordingSource::open(rec).expect("open the recording");
-    let calib = src.recording().calibration().clone();
-    let library = default_library().expect("shape library");
-    let mut station =
-        StationProcessor::new(calib, library, StationOptions::default()).expect("station");
-    run_offline(&mut src, &mut station, None, false).report
-}
-
 /// Girths may differ by this much between the subject replayed alone and with the
 /// passer-by, mm: the passer-by's frames are not measured, so fewer frames settle the
 /// values (dev subjects 20500-20505 moved by 0-10 mm, one waist by 25).
@@ -121,8 +108,8 @@ fn a_person_walking_behind_neither_stops_the_fit_nor_is_measured() {
     let (plain, walked) = (dir.join("plain"), dir.join("walked"));
     render_recording(&config(0, false, 12), &plain).expect("render");
     render_recording(&config(0, true, 12), &walked).expect("render");
-    let alone = replay(&plain);
-    let with = replay(&walked);
+    let alone = common::replay_report(&plain);
+    let with = common::replay_report(&walked);
     let messages = with["messages"].to_string();
     eprintln!(
         "frames alone {} / with the passer-by {}",

@@ -8,9 +8,7 @@
 //! change comes from the station: silhouettes seen at another angle, correspondences,
 //! the level search.
 
-use fitstation::cli::{run_offline, RecordingSource};
 use fitstation::recording::FrameFormat;
-use fitstation::station::{default_library, StationOptions, StationProcessor};
 use fitstation::synth::stance::Stance;
 use fitstation::synth::{render_recording, set_member};
 use std::path::{Path, PathBuf};
@@ -26,11 +24,10 @@ const TURN_DEG: f64 = 4.0;
 /// "A few millimetres" (issue 19, item 4), per girth.
 const MAX_CHANGE_MM: f64 = 6.0;
 
+mod common;
+
 fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fitstation-turn-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+    common::tmp_dir("turn", name)
 }
 
 /// Renders the subject turned by `yaw_deg` (arms, elbows and legs at rest) into `dir`.
@@ -52,13 +49,7 @@ fn render(dir: &Path, yaw_deg: f64) -> PathBuf {
 
 /// The station's reported girths (mm) for a recording.
 fn girths(rec: &Path) -> serde_json::Map<String, serde_json::Value> {
-    let mut src = RecordingSource::open(rec).expect("open the recording");
-    let calib = src.recording().calibration().clone();
-    let library = default_library().expect("shape library");
-    let mut station =
-        StationProcessor::new(calib, library, StationOptions::default()).expect("station");
-    let summary = run_offline(&mut src, &mut station, None, false);
-    summary.report["measurements_mm"]
+    common::replay_report(rec)["measurements_mm"]
         .as_object()
         .cloned()
         .expect("the subject is fitted and measured")
