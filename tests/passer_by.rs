@@ -130,13 +130,7 @@ fn a_person_walking_behind_neither_stops_the_fit_nor_is_measured() {
     );
     // ... and never taken for a second shopper in the booth.
     assert!(!messages.contains("More than one person"), "{messages}");
-    for key in [
-        "chest_girth",
-        "waist_girth",
-        "hip_girth",
-        "thigh_girth_left",
-        "thigh_girth_right",
-    ] {
+    for key in common::GIRTHS {
         let a = alone["measurements_mm"][key]
             .as_f64()
             .expect("measured alone");

@@ -67,13 +67,7 @@ fn a_small_turn_on_the_mark_moves_no_girth_more_than_a_few_millimetres() {
     let square = girths(&render(&dir, 0.0));
     let turned = girths(&render(&dir, TURN_DEG));
     let mut worst = (String::new(), 0.0f64);
-    for key in [
-        "chest_girth",
-        "waist_girth",
-        "hip_girth",
-        "thigh_girth_left",
-        "thigh_girth_right",
-    ] {
+    for key in common::GIRTHS {
         let a = square[key].as_f64().expect("girth");
         let b = turned[key].as_f64().expect("girth");
         eprintln!(

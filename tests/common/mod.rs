@@ -6,6 +6,15 @@ use fitstation::cli::{run_offline, RecordingSource};
 use fitstation::station::{default_library, StationOptions, StationProcessor};
 use std::path::{Path, PathBuf};
 
+/// The girths `report.json` reports.
+pub const GIRTHS: [&str; 5] = [
+    "chest_girth",
+    "waist_girth",
+    "hip_girth",
+    "thigh_girth_left",
+    "thigh_girth_right",
+];
+
 /// A fresh, empty temporary folder `fitstation-PREFIX-PID-NAME`.
 pub fn tmp_dir(prefix: &str, name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("fitstation-{prefix}-{}-{name}", std::process::id()));
