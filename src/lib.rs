@@ -20,6 +20,7 @@ pub mod contour;
 pub mod deform;
 pub mod eval;
 pub mod fit;
+pub mod fuzz;
 pub mod imgproc;
 pub mod io;
 pub mod landmarks;
