@@ -70,9 +70,8 @@ pub fn mesh(data: &[u8]) -> Result<(), String> {
     let ply = parse_ply(data, name).map_err(|e| e.to_string());
     let obj = parse_obj(data, name, None).map_err(|e| e.to_string());
     let _ = parse_obj(data, name, Some("body"));
-    let mut last = Err(String::new());
-    for m in [ply, obj] {
-        if let Ok(m) = &m {
+    for m in [&ply, &obj] {
+        if let Ok(m) = m {
             let mut text = Vec::new();
             write_obj_to(&mut text, m).map_err(|e| e.to_string())?;
             let back = parse_obj(text.as_slice(), name, None)
@@ -83,9 +82,11 @@ pub fn mesh(data: &[u8]) -> Result<(), String> {
                 "an accepted mesh changes in an OBJ round trip"
             );
         }
-        last = m.map(|_| ()).or(last);
     }
-    last
+    match (ply, obj) {
+        (Err(p), Err(o)) => Err(format!("as PLY: {p}; as OBJ: {o}")),
+        _ => Ok(()),
+    }
 }
 
 /// An MP4 file: open (index, or recovery from the media data) and decode a few frames.

@@ -10,6 +10,7 @@
 //! `mesh`, `body` (template, shape library) underneath; `app` wires them together with
 //! capture and the screen.
 
+#[cfg(feature = "gui")]
 pub mod app;
 pub mod body;
 pub mod calibrate;

@@ -3,11 +3,13 @@
 # targets of fuzz/ on the stable toolchain, writes the seed corpora from the repository's
 # real files, runs each target and prints, per target, executions, corpus size and crashes.
 #
-#   tools/fuzz.sh [--seconds N] [--parallel P] [TARGET...]
+#   tools/fuzz.sh [--seconds N] [--parallel P] [--keep-going] [TARGET...]
 #
 # --seconds N    run time per target (default 60); --parallel P: targets run at once
-#                (default 1). No TARGET: all of them. Exit status 1 if the build fails or
-#                any target crashed, hung (-timeout) or ran out of memory (-rss_limit_mb).
+#                (default 1); --keep-going: libFuzzer's fork mode, which records a crash
+#                and goes on (long runs); --no-seeds: the corpus as it is (repeated runs). No TARGET: all of them. Exit status 1 if the
+#                build fails or any target crashed, hung (-timeout=10) or ran out of
+#                memory (-rss_limit_mb=2048).
 # Corpora grow in fuzz/corpus/<target>/ (not committed); crashing inputs land in
 # fuzz/artifacts/<target>/; save them under tests/fuzz_cases/<target>/ with a test in
 # tests/fuzz_regressions.rs. Logs: fuzz/logs/<target>.log.
@@ -15,11 +17,15 @@ set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=60
 parallel=1
+keep_going=0
+seeds=1
 targets=()
 while [ $# -gt 0 ]; do
   case "$1" in
     --seconds) seconds=$2; shift 2 ;;
     --parallel) parallel=$2; shift 2 ;;
+    --keep-going) keep_going=1; shift ;;
+    --no-seeds) seeds=0; shift ;;
     -h|--help) sed -n 2,14p "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
@@ -39,6 +45,7 @@ echo "== building the fuzz targets (fuzz/target)"
 cargo build --release --manifest-path fuzz/Cargo.toml --target "$host" --bins
 bin=fuzz/target/$host/release
 
+if [ "$seeds" = 1 ]; then
 echo "== seed corpora from the repository's files (fuzz/corpus, tests/fuzz_seeds.rs)"
 # Built with the main crate's flags in target/ (CI has just built it for the tests).
 mkdir -p fuzz/logs
@@ -48,14 +55,17 @@ if ! (unset RUSTFLAGS; FITSTATION_FUZZ_SEEDS="$PWD/fuzz/corpus" \
   exit 1
 fi
 grep 'seeds written' fuzz/logs/seeds.log
+fi
 
 run_one() {
   local t=$1
+  local mode=()
+  [ "$keep_going" = 0 ] || mode=(-fork=1 -ignore_crashes=1 -ignore_timeouts=1 -ignore_ooms=1)
   mkdir -p "fuzz/corpus/$t" "fuzz/artifacts/$t" fuzz/logs "tests/fuzz_cases/$t"
   # New inputs go into the first folder; the saved crash cases are read as seeds too.
   nice -n 10 "$bin/$t" "fuzz/corpus/$t" "tests/fuzz_cases/$t" \
     -max_total_time="$seconds" -rss_limit_mb=2048 -timeout=10 -print_final_stats=1 \
-    -artifact_prefix="fuzz/artifacts/$t/" >"fuzz/logs/$t.log" 2>&1
+    -artifact_prefix="fuzz/artifacts/$t/" "${mode[@]}" >"fuzz/logs/$t.log" 2>&1
 }
 
 status=0
@@ -82,6 +92,11 @@ for t in "${names[@]}"; do
   log=fuzz/logs/$t.log
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
+  if [ -z "$execs" ]; then
+    # Fork mode's status lines: "#EXECS: cov: .. corp: .. exec/s: RATE .. time: Ts".
+    execs=$(sed -n 's/^#\([0-9]*\): cov:.*/\1/p' "$log" | tail -1)
+    rate=$(sed -n 's/^#[0-9]*: cov:.*exec\/s: \([0-9]*\).*/\1/p' "$log" | tail -1)
+  fi
   corpus=$(find "fuzz/corpus/$t" -type f | wc -l)
   crashes=$(find "fuzz/artifacts/$t" -type f \( -name 'crash-*' -o -name 'timeout-*' \
     -o -name 'oom-*' -o -name 'leak-*' \) | wc -l)

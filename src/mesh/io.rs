@@ -269,7 +269,15 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
     let mut positions = Vec::new();
     let mut triangles = Vec::new();
     for el in &header.elements {
+        if el.props.is_empty() && header.format != PlyFormat::Ascii {
+            // Binary records without properties take no bytes: nothing to read (and a
+            // header announcing billions of them must not keep the reader spinning).
+            continue;
+        }
         for _ in 0..el.count {
+            if reader.pos > bytes.len() {
+                return Err(reader.err("file ends before its last record (truncated?)"));
+            }
             read_ply_record(&mut reader, el, &mut positions, &mut triangles)?;
         }
     }

@@ -187,6 +187,14 @@ impl Mp4VideoReader {
             .min()
             .ok_or_else(|| format!("{}: no H.264 video track", path.display()))?;
         let t = reader.tracks().get(&track).ok_or("track vanished")?;
+        // Every sample takes at least a byte of the file: a larger count is a damaged
+        // index (and would size the per-sample tables below from the file's word).
+        if u64::from(t.sample_count()) > size {
+            return Err(format!(
+                "the index claims {} samples in a file of {size} bytes",
+                t.sample_count()
+            ));
+        }
         let sps = t
             .sequence_parameter_set()
             .map_err(|e| e.to_string())?
@@ -467,7 +475,8 @@ pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u
         Err(_) => "a codec the MP4 reader does not know (MPEG-4 Part 2?)".to_string(),
     };
     let (w, h) = (t.width(), t.height());
-    (t.sample_count() > 0 && w > 0 && h > 0).then(|| (t.sample_count() as usize, w, h, codec))
+    let n = t.sample_count();
+    (n > 0 && u64::from(n) <= size && w > 0 && h > 0).then(|| (n as usize, w, h, codec))
 }
 
 /// A decoded picture as 8-bit RGB.
@@ -491,19 +500,20 @@ pub(super) fn composition_times(t: &mp4::Mp4Track) -> Vec<i64> {
                 break;
             }
             cts.push(time);
-            time += i64::from(e.sample_delta);
+            time = time.saturating_add(i64::from(e.sample_delta));
         }
     }
     cts.resize(n, time);
     if let Some(ctts) = &stbl.ctts {
+        // Entries run over the samples in order; counts beyond the last sample are
+        // ignored (a damaged table may claim billions).
         let mut i = 0usize;
         for e in &ctts.entries {
-            for _ in 0..e.sample_count {
-                if let Some(c) = cts.get_mut(i) {
-                    *c += i64::from(e.sample_offset);
-                }
-                i += 1;
+            let end = i.saturating_add(e.sample_count as usize).min(n);
+            for c in &mut cts[i..end] {
+                *c = c.saturating_add(i64::from(e.sample_offset));
             }
+            i = end;
         }
     }
     cts
