@@ -93,9 +93,11 @@ for t in "${names[@]}"; do
   execs=$(sed -n 's/^stat::number_of_executed_units: *//p' "$log" | tail -1)
   rate=$(sed -n 's/^stat::average_exec_per_sec: *//p' "$log" | tail -1)
   if [ -z "$execs" ]; then
-    # Fork mode's status lines: "#EXECS: cov: .. corp: .. exec/s: RATE .. time: Ts".
+    # Fork mode's status lines: "#EXECS: cov: .. corp: .. exec/s: NOW .. time: Ts" (the
+    # average rate is executions over time).
     execs=$(sed -n 's/^#\([0-9]*\): cov:.*/\1/p' "$log" | tail -1)
-    rate=$(sed -n 's/^#[0-9]*: cov:.*exec\/s: \([0-9]*\).*/\1/p' "$log" | tail -1)
+    took=$(sed -n 's/^#[0-9]*: cov:.* time: \([0-9]*\)s.*/\1/p' "$log" | tail -1)
+    [ -z "$execs" ] || [ -z "$took" ] || [ "$took" = 0 ] || rate=$((execs / took))
   fi
   corpus=$(find "fuzz/corpus/$t" -type f | wc -l)
   crashes=$(find "fuzz/artifacts/$t" -type f \( -name 'crash-*' -o -name 'timeout-*' \

@@ -2,11 +2,13 @@
 //! fallbacks (a cut file's media data, an installed ffmpeg for other formats).
 
 use super::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 pub(super) enum Index {
     /// The MP4 index: the reader and the track id.
     Track {
-        reader: Box<mp4::Mp4Reader<BufReader<File>>>,
+        reader: Box<mp4::Mp4Reader<ForwardOnly<BufReader<File>>>>,
         track: u32,
         sps: Vec<u8>,
         pps: Vec<u8>,
@@ -177,8 +179,10 @@ impl Mp4VideoReader {
 
     pub(super) fn open_index(path: &Path, file: &File, size: u64) -> Result<Index, String> {
         let f = file.try_clone().map_err(|e| e.to_string())?;
-        let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size)
+        let (guarded, header_read) = ForwardOnly::new(BufReader::new(f));
+        let reader = mp4::Mp4Reader::read_header(guarded, size)
             .map_err(|e| format!("no readable MP4 index ({e})"))?;
+        header_read.store(true, Ordering::Relaxed);
         let track = reader
             .tracks()
             .iter()
@@ -364,6 +368,67 @@ impl Mp4VideoReader {
     }
 }
 
+/// Backward seeks allowed while the mp4 crate reads an index (a valid file needs a few:
+/// the crate re-reads some sample entries).
+const MAX_BACKWARD_SEEKS: u32 = 4096;
+
+/// A reader for the mp4 crate's header parse that limits seeks backwards until
+/// `header_read` is set: a box whose size is smaller than its header (0, say) sends the
+/// crate back to where it was, forever. Past [`MAX_BACKWARD_SEEKS`] a seek is an I/O
+/// error, so the parse fails and the file is treated as one without a readable index.
+/// Sample reads afterwards seek freely.
+pub(super) struct ForwardOnly<R> {
+    inner: R,
+    furthest: u64,
+    backward_seeks: u32,
+    header_read: Arc<AtomicBool>,
+}
+
+impl<R: Seek> ForwardOnly<R> {
+    /// The wrapper and the flag that lifts the guard once the header is read.
+    fn new(inner: R) -> (Self, Arc<AtomicBool>) {
+        let header_read = Arc::new(AtomicBool::new(false));
+        let r = ForwardOnly {
+            inner,
+            furthest: 0,
+            backward_seeks: 0,
+            header_read: header_read.clone(),
+        };
+        (r, header_read)
+    }
+}
+
+impl<R: Read + Seek> Read for ForwardOnly<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if !self.header_read.load(Ordering::Relaxed) {
+            let at = self.inner.stream_position()?;
+            self.furthest = self.furthest.max(at);
+        }
+        Ok(n)
+    }
+}
+
+impl<R: Seek> Seek for ForwardOnly<R> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        if self.header_read.load(Ordering::Relaxed) || pos == SeekFrom::Current(0) {
+            return self.inner.seek(pos);
+        }
+        let at = self.inner.seek(pos)?;
+        if at < self.furthest {
+            self.backward_seeks += 1;
+            if self.backward_seeks > MAX_BACKWARD_SEEKS {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!("box sizes keep sending the index back (to byte {at}): damaged index"),
+                ));
+            }
+        }
+        self.furthest = self.furthest.max(at);
+        Ok(at)
+    }
+}
+
 /// Opens a file and reads its size.
 fn open_sized(path: &Path) -> Result<(File, u64), VideoError> {
     let io = |source| VideoError::Io {
@@ -464,7 +529,7 @@ pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u
     // The clone shares the file position the failed H.264 look left behind.
     let mut f = file.try_clone().ok()?;
     f.seek(SeekFrom::Start(0)).ok()?;
-    let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size).ok()?;
+    let reader = mp4::Mp4Reader::read_header(ForwardOnly::new(BufReader::new(f)).0, size).ok()?;
     let mut tracks: Vec<_> = reader.tracks().iter().collect();
     tracks.sort_by_key(|(id, _)| **id);
     let (_, t) = tracks
