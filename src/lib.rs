@@ -10,6 +10,7 @@
 //! `mesh`, `body` (template, shape library) underneath; `app` wires them together with
 //! capture and the screen.
 
+#[cfg(feature = "gui")]
 pub mod app;
 pub mod body;
 pub mod calibrate;
@@ -20,6 +21,7 @@ pub mod contour;
 pub mod deform;
 pub mod eval;
 pub mod fit;
+pub mod fuzz;
 pub mod imgproc;
 pub mod io;
 pub mod landmarks;

@@ -41,8 +41,10 @@ enum Command {
     /// Calibrate the two cameras (lens, then position at the mark) or check a station.yaml.
     Calibrate(fitstation::calibrate::cli::CalibrateArgs),
     /// The station screen on a synthetic demo station (no cameras needed).
+    #[cfg(feature = "gui")]
     DemoUi(fitstation::app::DemoUiArgs),
     /// The station screen on two live cameras (build with --features camera).
+    #[cfg(feature = "gui")]
     Live(fitstation::app::LiveArgs),
     /// Loop a recording for a while (shoppers coming and going); check memory, threads, files, results.
     Soak(fitstation::soak::SoakArgs),
@@ -117,7 +119,9 @@ fn run() -> anyhow::Result<()> {
         } => fitstation::deform::bench::run(args)?,
         Command::Version => println!("fitstation {}", env!("CARGO_PKG_VERSION")),
         Command::Calibrate(args) => fitstation::calibrate::cli::run(args)?,
+        #[cfg(feature = "gui")]
         Command::DemoUi(args) => fitstation::app::run_demo_cli(args)?,
+        #[cfg(feature = "gui")]
         Command::Live(args) => fitstation::app::run_live_cli(args)?,
         Command::Soak(args) => fitstation::soak::run(&args)?,
     }

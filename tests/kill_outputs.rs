@@ -196,7 +196,11 @@ fn check_recording(rec: &Path, run: usize, format: &str) -> usize {
             println!("run {run}: front {} side {}", f.len(), s.len());
         }
         assert_eq!(f, (0..pairs as u64).collect::<Vec<_>>(), "run {run}: a gap");
-        assert_eq!(s, (0..s.len() as u64).collect::<Vec<_>>(), "run {run}: a gap");
+        assert_eq!(
+            s,
+            (0..s.len() as u64).collect::<Vec<_>>(),
+            "run {run}: a gap"
+        );
         Some(pairs)
     } else {
         None

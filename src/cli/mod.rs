@@ -562,7 +562,12 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
         .as_deref()
         .map(crate::capture::inject::parse_spec)
         .transpose()?;
+    #[cfg(not(feature = "gui"))]
+    if args.ui {
+        anyhow::bail!("this fitstation was built without the station screen (cargo feature `gui`)");
+    }
     check_outputs(args.out.as_deref(), args.record.as_deref())?;
+    #[cfg_attr(not(feature = "gui"), allow(unused_mut))]
     let mut source = RecordingSource::open(&args.recording)?;
     for w in source.recording().warnings() {
         eprintln!("warning: {w}");
@@ -572,8 +577,10 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
     if opts.stature_m.is_none() {
         opts.stature_m = source.recording().metadata().stature_m;
     }
+    #[cfg_attr(not(feature = "gui"), allow(unused_variables))]
     let backdrop_frames = opts.backdrop_frames;
     let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
+    #[cfg(feature = "gui")]
     if args.ui {
         // On screen the recording plays in a loop at its own frame rate; frames the
         // station cannot keep up with are dropped, as with live cameras.

@@ -258,6 +258,52 @@ pub fn read_ply(path: &Path) -> Result<TriMesh, MeshIoError> {
 
 /// Parses PLY bytes; `path` only names the source in errors.
 pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
+    let header = parse_ply_header(bytes, path)?;
+    let mut reader = PlyBody {
+        bytes,
+        pos: header.body_start,
+        format: header.format,
+        line: header.lines,
+        path,
+    };
+    let mut positions = Vec::new();
+    let mut triangles = Vec::new();
+    for el in &header.elements {
+        if el.props.is_empty() && header.format != PlyFormat::Ascii {
+            // Binary records without properties take no bytes: nothing to read (and a
+            // header announcing billions of them must not keep the reader spinning).
+            continue;
+        }
+        for _ in 0..el.count {
+            if reader.pos > bytes.len() {
+                return Err(reader.err("file ends before its last record (truncated?)"));
+            }
+            read_ply_record(&mut reader, el, &mut positions, &mut triangles)?;
+        }
+    }
+    let n = positions.len() as u32;
+    if triangles.iter().any(|t| t.iter().any(|&v| v >= n)) {
+        return Err(MeshIoError::Invalid {
+            file: path.to_path_buf(),
+            msg: format!("face index beyond {n} vertices"),
+        });
+    }
+    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
+    finish(path, positions, triangles)
+}
+
+/// What a PLY header announces: the body's format, its elements and where it starts.
+struct PlyHeader {
+    format: PlyFormat,
+    elements: Vec<PlyElement>,
+    /// Byte offset of the first record.
+    body_start: usize,
+    /// Header lines read (the line number of the last one).
+    lines: usize,
+}
+
+/// Reads the header's text lines up to `end_header`: format, elements and properties.
+fn parse_ply_header(bytes: &[u8], path: &Path) -> Result<PlyHeader, MeshIoError> {
     // Header: text lines up to "end_header".
     let mut pos = 0usize;
     let mut line_no = 0usize;
@@ -353,77 +399,71 @@ pub fn parse_ply(bytes: &[u8], path: &Path) -> Result<TriMesh, MeshIoError> {
         }
     }
     let format = format.ok_or_else(|| perr(path, line_no, "header has no format line"))?;
-    let mut positions = Vec::new();
-    let mut triangles = Vec::new();
-    let mut reader = PlyBody {
-        bytes,
-        pos,
+    Ok(PlyHeader {
         format,
-        line: line_no,
-        path,
-    };
-    for el in &elements {
-        for _ in 0..el.count {
-            reader.begin_record()?;
-            let mut xyz = [f64::NAN; 3];
-            let mut face: Vec<u32> = Vec::new();
-            for p in &el.props {
-                match p {
-                    PlyProp::Scalar(name, t) => {
-                        let v = reader.scalar(*t)?;
-                        if el.name == "vertex" {
-                            match name.as_str() {
-                                "x" => xyz[0] = v,
-                                "y" => xyz[1] = v,
-                                "z" => xyz[2] = v,
-                                _ => {}
-                            }
-                        }
-                    }
-                    PlyProp::List(name, ct, it) => {
-                        let n = reader.scalar(*ct)?;
-                        if !(0.0..=1024.0).contains(&n) {
-                            return Err(reader.err(format!("list length {n} out of range")));
-                        }
-                        let keep = el.name == "face"
-                            && (name == "vertex_indices" || name == "vertex_index");
-                        for _ in 0..n as usize {
-                            let v = reader.scalar(*it)?;
-                            if keep {
-                                if v < 0.0 || v.fract() != 0.0 {
-                                    return Err(reader.err(format!("bad vertex index {v}")));
-                                }
-                                face.push(v as u32);
-                            }
-                        }
+        elements,
+        body_start: pos,
+        lines: line_no,
+    })
+}
+
+/// Reads one record of `el`: a vertex's x, y, z into `positions`, a face's polygon
+/// fan-triangulated into `triangles`, anything else read and dropped.
+fn read_ply_record(
+    reader: &mut PlyBody<'_>,
+    el: &PlyElement,
+    positions: &mut Vec<DVec3>,
+    triangles: &mut Vec<[u32; 3]>,
+) -> Result<(), MeshIoError> {
+    reader.begin_record()?;
+    let mut xyz = [f64::NAN; 3];
+    let mut face: Vec<u32> = Vec::new();
+    for p in &el.props {
+        match p {
+            PlyProp::Scalar(name, t) => {
+                let v = reader.scalar(*t)?;
+                if el.name == "vertex" {
+                    match name.as_str() {
+                        "x" => xyz[0] = v,
+                        "y" => xyz[1] = v,
+                        "z" => xyz[2] = v,
+                        _ => {}
                     }
                 }
             }
-            if el.name == "vertex" {
-                if !xyz.iter().all(|c| c.is_finite()) {
-                    return Err(reader.err("vertex without finite x, y, z"));
+            PlyProp::List(name, ct, it) => {
+                let n = reader.scalar(*ct)?;
+                if !(0.0..=1024.0).contains(&n) {
+                    return Err(reader.err(format!("list length {n} out of range")));
                 }
-                positions.push(DVec3::from_array(xyz));
-            } else if el.name == "face" {
-                if face.len() < 3 {
-                    return Err(reader.err("face with fewer than 3 vertices"));
-                }
-                for k in 1..face.len() - 1 {
-                    triangles.push([face[0], face[k], face[k + 1]]);
+                let keep =
+                    el.name == "face" && (name == "vertex_indices" || name == "vertex_index");
+                for _ in 0..n as usize {
+                    let v = reader.scalar(*it)?;
+                    if keep {
+                        if v < 0.0 || v.fract() != 0.0 {
+                            return Err(reader.err(format!("bad vertex index {v}")));
+                        }
+                        face.push(v as u32);
+                    }
                 }
             }
-            reader.end_record()?;
         }
     }
-    let n = positions.len() as u32;
-    if triangles.iter().any(|t| t.iter().any(|&v| v >= n)) {
-        return Err(MeshIoError::Invalid {
-            file: path.to_path_buf(),
-            msg: format!("face index beyond {n} vertices"),
-        });
+    if el.name == "vertex" {
+        if !xyz.iter().all(|c| c.is_finite()) {
+            return Err(reader.err("vertex without finite x, y, z"));
+        }
+        positions.push(DVec3::from_array(xyz));
+    } else if el.name == "face" {
+        if face.len() < 3 {
+            return Err(reader.err("face with fewer than 3 vertices"));
+        }
+        for k in 1..face.len() - 1 {
+            triangles.push([face[0], face[k], face[k + 1]]);
+        }
     }
-    triangles.retain(|t| t[0] != t[1] && t[1] != t[2] && t[0] != t[2]);
-    finish(path, positions, triangles)
+    reader.end_record()
 }
 
 struct PlyBody<'a> {

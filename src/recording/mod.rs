@@ -382,15 +382,36 @@ impl Recording {
 }
 
 fn load_image(path: &Path) -> Result<RgbImage, RecordingError> {
-    let img = image::ImageReader::open(path)
-        .map_err(io_err(path))?
+    let bytes = std::fs::read(path).map_err(io_err(path))?;
+    decode_frame(&bytes, path)
+}
+
+/// Largest frame side accepted, pixels (a 4K camera is 3840; a header that claims more
+/// is refused before any pixel memory is taken).
+pub const MAX_FRAME_SIDE: u32 = 8192;
+/// Most memory one decoded frame may take, bytes (an 8K x 8K RGBA frame).
+pub const MAX_FRAME_BYTES: u64 = 8192 * 8192 * 4;
+
+/// Decodes one frame file's bytes (PNG or JPEG, told by its content) into RGB; `path`
+/// only names the source in errors. The frame path of [`Recording::frame_pair`].
+///
+/// # Errors
+/// [`RecordingError::Image`] for an unknown format, a corrupt file or a frame larger
+/// than [`MAX_FRAME_SIDE`].
+pub fn decode_frame(bytes: &[u8], path: &Path) -> Result<RgbImage, RecordingError> {
+    let bad = |msg: String| RecordingError::Image {
+        path: path.to_path_buf(),
+        msg,
+    };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes))
         .with_guessed_format()
-        .map_err(io_err(path))?
-        .decode()
-        .map_err(|e| RecordingError::Image {
-            path: path.to_path_buf(),
-            msg: e.to_string(),
-        })?;
+        .map_err(|e| bad(e.to_string()))?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_FRAME_SIDE);
+    limits.max_image_height = Some(MAX_FRAME_SIDE);
+    limits.max_alloc = Some(MAX_FRAME_BYTES);
+    reader.limits(limits);
+    let img = reader.decode().map_err(|e| bad(e.to_string()))?;
     Ok(img.to_rgb8())
 }
 

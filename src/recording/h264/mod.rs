@@ -104,6 +104,73 @@ pub fn annexb_nals(stream: &[u8]) -> Vec<&[u8]> {
     out
 }
 
+/// Converts one MP4 sample (4-byte big-endian length-prefixed NAL units) to Annex-B
+/// (start codes) appended to `out`, with the SPS and PPS first when given (sync
+/// samples, stack.md "Video files").
+///
+/// # Errors
+/// A zero or overlong NAL length (the message names it).
+pub fn sample_to_annexb(
+    sample: &[u8],
+    parameter_sets: Option<(&[u8], &[u8])>,
+    out: &mut Vec<u8>,
+) -> Result<(), String> {
+    if let Some((sps, pps)) = parameter_sets {
+        for ps in [sps, pps] {
+            out.extend_from_slice(&START_CODE);
+            out.extend_from_slice(ps);
+        }
+    }
+    let mut p = 0usize;
+    while p + 4 <= sample.len() {
+        let n =
+            u32::from_be_bytes([sample[p], sample[p + 1], sample[p + 2], sample[p + 3]]) as usize;
+        p += 4;
+        if n == 0 || n > sample.len() - p {
+            return Err(format!("corrupt NAL length {n} at byte {}", p - 4));
+        }
+        out.extend_from_slice(&START_CODE);
+        out.extend_from_slice(&sample[p..p + n]);
+        p += n;
+    }
+    Ok(())
+}
+
+/// Decodes one MP4 sample on its own with a fresh decoder, as the reader does for a sync
+/// sample (SPS and PPS prepended when given; the stream's format is read from the SPS
+/// first). The decoder's pictures, in order (a reordering stream gives them at the
+/// flush). `name` only names the source in errors. Used by the fuzz target
+/// `h264_sample` and its regression tests.
+///
+/// # Errors
+/// A corrupt NAL length, an SPS OpenH264 cannot decode, or a decoder error.
+pub fn decode_sample_bytes(
+    sample: &[u8],
+    parameter_sets: Option<(&[u8], &[u8])>,
+    name: &Path,
+) -> Result<Vec<RgbImage>, VideoError> {
+    if let Some(f) = parameter_sets.and_then(|(sps, _)| SpsFormat::parse(sps)) {
+        if !f.openh264_decodes() {
+            return Err(verr(name, format!("H.264 {f}: not decoded by OpenH264")));
+        }
+    }
+    let mut annexb = Vec::with_capacity(sample.len() + 64);
+    sample_to_annexb(sample, parameter_sets, &mut annexb).map_err(|m| verr(name, m))?;
+    let mut decoder = reader::new_decoder(name)?;
+    let mut out = Vec::new();
+    if let Some(yuv) = decoder
+        .decode(&annexb)
+        .map_err(|e| verr(name, format!("H.264 decode: {e}")))?
+    {
+        out.push(reader::to_rgb(&yuv));
+    }
+    let rest = decoder
+        .flush_remaining()
+        .map_err(|e| verr(name, format!("H.264 flush: {e}")))?;
+    out.extend(rest.iter().map(reader::to_rgb));
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::reader::clean_restarts;

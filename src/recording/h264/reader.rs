@@ -2,11 +2,13 @@
 //! fallbacks (a cut file's media data, an installed ffmpeg for other formats).
 
 use super::*;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 
 pub(super) enum Index {
     /// The MP4 index: the reader and the track id.
     Track {
-        reader: Box<mp4::Mp4Reader<BufReader<File>>>,
+        reader: Box<mp4::Mp4Reader<ForwardOnly<BufReader<File>>>>,
         track: u32,
         sps: Vec<u8>,
         pps: Vec<u8>,
@@ -78,141 +80,20 @@ pub(super) fn clean_restarts(sync: &[usize], cts: &[i64]) -> Vec<usize> {
 }
 
 impl Mp4VideoReader {
+    /// Opens an MP4 file: its H.264 track's index, else another codec's track through
+    /// ffmpeg, else the pictures recovered from the media data.
+    ///
+    /// # Errors
+    /// An unreadable file, or no index and nothing recoverable.
     pub fn open(path: &Path) -> Result<Self, VideoError> {
-        let file = File::open(path).map_err(|source| VideoError::Io {
-            file: path.to_path_buf(),
-            source,
-        })?;
-        let size = file
-            .metadata()
-            .map_err(|source| VideoError::Io {
-                file: path.to_path_buf(),
-                source,
-            })?
-            .len();
+        let (file, size) = open_sized(path)?;
         let mut warnings = Vec::new();
-        let mut external = None;
-        let index = match Self::open_index(path, &file, size) {
-            Ok(i) => i,
-            Err(msg) if let Some((len, w, h, codec)) = other_video_track(&file, size) => {
-                // A readable MP4 whose video is not H.264 (MPEG-4 Part 2 from OpenCV's
-                // VideoWriter, say): not what spec/formats.md asks for, but readable.
-                let pipe = FfmpegPipe::new(path, u32::from(w), u32::from(h)).map_err(|e| {
-                    verr(
-                        path,
-                        format!(
-                            "{msg}: the video track is {codec}; recordings hold H.264 \
-                             (spec/formats.md) and ffmpeg, used for other codecs when \
-                             installed, could not be run ({e})"
-                        ),
-                    )
-                })?;
-                warnings.push(format!(
-                    "{}: the video track is {codec}, not H.264: decoded by ffmpeg",
-                    path.display()
-                ));
-                external = Some(pipe);
-                Index::External {
-                    len,
-                    width: u32::from(w),
-                    height: u32::from(h),
-                }
-            }
-            Err(msg) => {
-                let pictures = scan_mdat(path, size)?;
-                if pictures.is_empty() {
-                    // Cut before its index with nothing recoverable (a codec other than
-                    // H.264 cannot be walked without the index): say so, rather than let
-                    // the recording report "no frames" for a file that is there.
-                    return Err(verr(
-                        path,
-                        format!(
-                            "{msg}; no complete H.264 picture in the media data either: \
-                             the file was cut before its index was written (frames of \
-                             other codecs cannot be recovered without it)"
-                        ),
-                    ));
-                }
-                warnings.push(format!(
-                    "{}: {msg}; recovered {} frame(s) from the media data (file cut short?)",
-                    path.display(),
-                    pictures.len()
-                ));
-                let f = File::open(path).map_err(|source| VideoError::Io {
-                    file: path.to_path_buf(),
-                    source,
-                })?;
-                Index::Scanned {
-                    file: BufReader::new(f),
-                    pictures,
-                }
-            }
-        };
-        let sync: Vec<usize> = match &index {
-            Index::Track { reader, track, .. } => {
-                let t = reader.tracks().get(track);
-                let sync: Vec<usize> = match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
-                    // No sync table: every sample is a sync sample (ISO 14496-12).
-                    None => (0..t.map_or(0, |t| t.sample_count() as usize)).collect(),
-                    Some(stss) => stss
-                        .entries
-                        .iter()
-                        .filter(|&&e| e >= 1)
-                        .map(|&e| e as usize - 1)
-                        .collect(),
-                };
-                match t {
-                    Some(t) => clean_restarts(&sync, &composition_times(t)),
-                    None => sync,
-                }
-            }
-            Index::Scanned { pictures, .. } => pictures
-                .iter()
-                .enumerate()
-                .filter(|(_, p)| p.idr)
-                .map(|(i, _)| i)
-                .collect(),
-            Index::External { .. } => Vec::new(),
-        };
-        let (len, width, height) = match &index {
-            Index::Track { reader, track, .. } => {
-                let t = reader
-                    .tracks()
-                    .get(track)
-                    .ok_or_else(|| verr(path, "track vanished"))?;
-                (
-                    t.sample_count() as usize,
-                    t.width() as u32,
-                    t.height() as u32,
-                )
-            }
-            Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
-            Index::External { len, width, height } => (*len, *width, *height),
-        };
-        let external = match &index {
-            Index::External { .. } => external,
-            Index::Track { sps, .. } => match SpsFormat::parse(sps) {
-                Some(f) if !f.openh264_decodes() => {
-                    let pipe = FfmpegPipe::new(path, width, height).map_err(|e| {
-                        verr(
-                            path,
-                            format!(
-                                "H.264 {f}: the built-in decoder (OpenH264) reads 8-bit 4:2:0 \
-                                 only, and ffmpeg, used for other streams when installed, \
-                                 could not be run ({e}); re-encode with `ffmpeg -i IN \
-                                 -pix_fmt yuv420p OUT.mp4`"
-                            ),
-                        )
-                    })?;
-                    warnings.push(format!(
-                        "{}: H.264 {f} is decoded by ffmpeg (OpenH264 reads 8-bit 4:2:0 only)",
-                        path.display()
-                    ));
-                    Some(pipe)
-                }
-                _ => None,
-            },
-            Index::Scanned { .. } => None,
+        let (index, external) = Self::index_or_fallback(path, &file, size, &mut warnings)?;
+        let sync = restart_samples(&index);
+        let (len, width, height) = frames_and_size(path, &index)?;
+        let external = match external {
+            Some(pipe) => Some(pipe),
+            None => external_for_format(path, &index, (width, height), &mut warnings)?,
         };
         let decoder = new_decoder(path)?;
         Ok(Mp4VideoReader {
@@ -233,10 +114,75 @@ impl Mp4VideoReader {
         })
     }
 
+    /// The H.264 index, else another codec's track (with its ffmpeg pipe), else the
+    /// pictures walked from the media data of a file cut before its index.
+    fn index_or_fallback(
+        path: &Path,
+        file: &File,
+        size: u64,
+        warnings: &mut Vec<String>,
+    ) -> Result<(Index, Option<FfmpegPipe>), VideoError> {
+        let msg = match Self::open_index(path, file, size) {
+            Ok(i) => return Ok((i, None)),
+            Err(msg) => msg,
+        };
+        if let Some((len, w, h, codec)) = other_video_track(file, size) {
+            // A readable MP4 whose video is not H.264 (MPEG-4 Part 2 from OpenCV's
+            // VideoWriter, say): not what spec/formats.md asks for, but readable.
+            let pipe = FfmpegPipe::new(path, u32::from(w), u32::from(h)).map_err(|e| {
+                verr(
+                    path,
+                    format!(
+                        "{msg}: the video track is {codec}; recordings hold H.264 \
+                         (spec/formats.md) and ffmpeg, used for other codecs when \
+                         installed, could not be run ({e})"
+                    ),
+                )
+            })?;
+            warnings.push(format!(
+                "{}: the video track is {codec}, not H.264: decoded by ffmpeg",
+                path.display()
+            ));
+            let index = Index::External {
+                len,
+                width: u32::from(w),
+                height: u32::from(h),
+            };
+            return Ok((index, Some(pipe)));
+        }
+        let pictures = scan_mdat(path, size)?;
+        if pictures.is_empty() {
+            // Cut before its index with nothing recoverable (a codec other than
+            // H.264 cannot be walked without the index): say so, rather than let
+            // the recording report "no frames" for a file that is there.
+            return Err(verr(
+                path,
+                format!(
+                    "{msg}; no complete H.264 picture in the media data either: \
+                     the file was cut before its index was written (frames of \
+                     other codecs cannot be recovered without it)"
+                ),
+            ));
+        }
+        warnings.push(format!(
+            "{}: {msg}; recovered {} frame(s) from the media data (file cut short?)",
+            path.display(),
+            pictures.len()
+        ));
+        let (f, _) = open_sized(path)?;
+        let index = Index::Scanned {
+            file: BufReader::new(f),
+            pictures,
+        };
+        Ok((index, None))
+    }
+
     pub(super) fn open_index(path: &Path, file: &File, size: u64) -> Result<Index, String> {
         let f = file.try_clone().map_err(|e| e.to_string())?;
-        let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size)
+        let (guarded, header_read) = ForwardOnly::new(BufReader::new(f));
+        let reader = mp4::Mp4Reader::read_header(guarded, size)
             .map_err(|e| format!("no readable MP4 index ({e})"))?;
+        header_read.store(true, Ordering::Relaxed);
         let track = reader
             .tracks()
             .iter()
@@ -245,6 +191,33 @@ impl Mp4VideoReader {
             .min()
             .ok_or_else(|| format!("{}: no H.264 video track", path.display()))?;
         let t = reader.tracks().get(&track).ok_or("track vanished")?;
+        // Every sample takes at least a byte of the file: a larger count is a damaged
+        // index (and would size the per-sample tables below from the file's word).
+        if u64::from(t.sample_count()) > size {
+            return Err(format!(
+                "the index claims {} samples in a file of {size} bytes",
+                t.sample_count()
+            ));
+        }
+        // The mp4 crate reads a sample's time from `stts` and panics on a sample the
+        // table does not cover (fuzz case `crash-read-sample-stts-short`):
+        // such an index is damaged too.
+        let timed: u64 = t
+            .trak
+            .mdia
+            .minf
+            .stbl
+            .stts
+            .entries
+            .iter()
+            .map(|e| u64::from(e.sample_count))
+            .sum();
+        if timed < u64::from(t.sample_count()) {
+            return Err(format!(
+                "the index times {timed} of its {} samples",
+                t.sample_count()
+            ));
+        }
         let sps = t
             .sequence_parameter_set()
             .map_err(|e| e.to_string())?
@@ -377,24 +350,9 @@ impl Mp4VideoReader {
                     .read_sample(*track, i as u32 + 1)
                     .map_err(|e| verr(&path, format!("frame {i}: {e}")))?
                     .ok_or_else(|| verr(&path, format!("frame {i}: missing sample")))?;
-                if sample.is_sync {
-                    for ps in [&*sps, &*pps] {
-                        self.annexb.extend_from_slice(&START_CODE);
-                        self.annexb.extend_from_slice(ps);
-                    }
-                }
-                let b: &[u8] = &sample.bytes;
-                let mut p = 0usize;
-                while p + 4 <= b.len() {
-                    let n = u32::from_be_bytes([b[p], b[p + 1], b[p + 2], b[p + 3]]) as usize;
-                    p += 4;
-                    if n == 0 || p + n > b.len() {
-                        return Err(verr(&path, format!("frame {i}: corrupt NAL length")));
-                    }
-                    self.annexb.extend_from_slice(&START_CODE);
-                    self.annexb.extend_from_slice(&b[p..p + n]);
-                    p += n;
-                }
+                let ps = sample.is_sync.then_some((sps.as_slice(), pps.as_slice()));
+                sample_to_annexb(&sample.bytes, ps, &mut self.annexb)
+                    .map_err(|m| verr(&path, format!("frame {i}: {m}")))?;
             }
             Index::External { .. } => {
                 return Err(verr(&path, format!("frame {i}: no H.264 track")));
@@ -433,13 +391,168 @@ impl Mp4VideoReader {
     }
 }
 
+/// Backward seeks allowed while the mp4 crate reads an index (a valid file needs a few:
+/// the crate re-reads some sample entries).
+const MAX_BACKWARD_SEEKS: u32 = 4096;
+
+/// A reader for the mp4 crate's header parse that limits seeks backwards until
+/// `header_read` is set: a box whose size is smaller than its header (0, say) sends the
+/// crate back to where it was, forever. Past [`MAX_BACKWARD_SEEKS`] a seek is an I/O
+/// error, so the parse fails and the file is treated as one without a readable index.
+/// Sample reads afterwards seek freely.
+pub(super) struct ForwardOnly<R> {
+    inner: R,
+    furthest: u64,
+    backward_seeks: u32,
+    header_read: Arc<AtomicBool>,
+}
+
+impl<R: Seek> ForwardOnly<R> {
+    /// The wrapper and the flag that lifts the guard once the header is read.
+    fn new(inner: R) -> (Self, Arc<AtomicBool>) {
+        let header_read = Arc::new(AtomicBool::new(false));
+        let r = ForwardOnly {
+            inner,
+            furthest: 0,
+            backward_seeks: 0,
+            header_read: header_read.clone(),
+        };
+        (r, header_read)
+    }
+}
+
+impl<R: Read + Seek> Read for ForwardOnly<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        if !self.header_read.load(Ordering::Relaxed) {
+            let at = self.inner.stream_position()?;
+            self.furthest = self.furthest.max(at);
+        }
+        Ok(n)
+    }
+}
+
+impl<R: Seek> Seek for ForwardOnly<R> {
+    fn seek(&mut self, pos: SeekFrom) -> std::io::Result<u64> {
+        if self.header_read.load(Ordering::Relaxed) || pos == SeekFrom::Current(0) {
+            return self.inner.seek(pos);
+        }
+        let at = self.inner.seek(pos)?;
+        if at < self.furthest {
+            self.backward_seeks += 1;
+            if self.backward_seeks > MAX_BACKWARD_SEEKS {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    format!("box sizes keep sending the index back (to byte {at}): damaged index"),
+                ));
+            }
+        }
+        self.furthest = self.furthest.max(at);
+        Ok(at)
+    }
+}
+
+/// Opens a file and reads its size.
+fn open_sized(path: &Path) -> Result<(File, u64), VideoError> {
+    let io = |source| VideoError::Io {
+        file: path.to_path_buf(),
+        source,
+    };
+    let file = File::open(path).map_err(io)?;
+    let size = file.metadata().map_err(io)?.len();
+    Ok((file, size))
+}
+
+/// The samples decoding may restart at: the index's clean sync samples, or the
+/// recovered IDR pictures (none for a stream ffmpeg decodes).
+fn restart_samples(index: &Index) -> Vec<usize> {
+    match index {
+        Index::Track { reader, track, .. } => {
+            let t = reader.tracks().get(track);
+            let sync: Vec<usize> = match t.and_then(|t| t.trak.mdia.minf.stbl.stss.as_ref()) {
+                // No sync table: every sample is a sync sample (ISO 14496-12).
+                None => (0..t.map_or(0, |t| t.sample_count() as usize)).collect(),
+                Some(stss) => stss
+                    .entries
+                    .iter()
+                    .filter(|&&e| e >= 1)
+                    .map(|&e| e as usize - 1)
+                    .collect(),
+            };
+            match t {
+                Some(t) => clean_restarts(&sync, &composition_times(t)),
+                None => sync,
+            }
+        }
+        Index::Scanned { pictures, .. } => pictures
+            .iter()
+            .enumerate()
+            .filter(|(_, p)| p.idr)
+            .map(|(i, _)| i)
+            .collect(),
+        Index::External { .. } => Vec::new(),
+    }
+}
+
+/// Frame count, width and height (pixels) per the index (size 0 x 0 until decoded
+/// for recovered files).
+fn frames_and_size(path: &Path, index: &Index) -> Result<(usize, u32, u32), VideoError> {
+    Ok(match index {
+        Index::Track { reader, track, .. } => {
+            let t = reader
+                .tracks()
+                .get(track)
+                .ok_or_else(|| verr(path, "track vanished"))?;
+            (
+                t.sample_count() as usize,
+                t.width() as u32,
+                t.height() as u32,
+            )
+        }
+        Index::Scanned { pictures, .. } => (pictures.len(), 0, 0),
+        Index::External { len, width, height } => (*len, *width, *height),
+    })
+}
+
+/// An ffmpeg pipe for an H.264 track whose SPS asks for more than OpenH264 decodes
+/// (not 8-bit 4:2:0); None when OpenH264 will do.
+fn external_for_format(
+    path: &Path,
+    index: &Index,
+    (width, height): (u32, u32),
+    warnings: &mut Vec<String>,
+) -> Result<Option<FfmpegPipe>, VideoError> {
+    let Index::Track { sps, .. } = index else {
+        return Ok(None);
+    };
+    let Some(f) = SpsFormat::parse(sps).filter(|f| !f.openh264_decodes()) else {
+        return Ok(None);
+    };
+    let pipe = FfmpegPipe::new(path, width, height).map_err(|e| {
+        verr(
+            path,
+            format!(
+                "H.264 {f}: the built-in decoder (OpenH264) reads 8-bit 4:2:0 \
+                 only, and ffmpeg, used for other streams when installed, \
+                 could not be run ({e}); re-encode with `ffmpeg -i IN \
+                 -pix_fmt yuv420p OUT.mp4`"
+            ),
+        )
+    })?;
+    warnings.push(format!(
+        "{}: H.264 {f} is decoded by ffmpeg (OpenH264 reads 8-bit 4:2:0 only)",
+        path.display()
+    ));
+    Ok(Some(pipe))
+}
+
 /// The first video track of a readable MP4 that holds no H.264 track: (frames, width,
 /// height, codec name).
 pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u16, String)> {
     // The clone shares the file position the failed H.264 look left behind.
     let mut f = file.try_clone().ok()?;
     f.seek(SeekFrom::Start(0)).ok()?;
-    let reader = mp4::Mp4Reader::read_header(BufReader::new(f), size).ok()?;
+    let reader = mp4::Mp4Reader::read_header(ForwardOnly::new(BufReader::new(f)).0, size).ok()?;
     let mut tracks: Vec<_> = reader.tracks().iter().collect();
     tracks.sort_by_key(|(id, _)| **id);
     let (_, t) = tracks
@@ -450,7 +563,8 @@ pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u
         Err(_) => "a codec the MP4 reader does not know (MPEG-4 Part 2?)".to_string(),
     };
     let (w, h) = (t.width(), t.height());
-    (t.sample_count() > 0 && w > 0 && h > 0).then(|| (t.sample_count() as usize, w, h, codec))
+    let n = t.sample_count();
+    (n > 0 && u64::from(n) <= size && w > 0 && h > 0).then(|| (n as usize, w, h, codec))
 }
 
 /// A decoded picture as 8-bit RGB.
@@ -474,19 +588,20 @@ pub(super) fn composition_times(t: &mp4::Mp4Track) -> Vec<i64> {
                 break;
             }
             cts.push(time);
-            time += i64::from(e.sample_delta);
+            time = time.saturating_add(i64::from(e.sample_delta));
         }
     }
     cts.resize(n, time);
     if let Some(ctts) = &stbl.ctts {
+        // Entries run over the samples in order; counts beyond the last sample are
+        // ignored (a damaged table may claim billions).
         let mut i = 0usize;
         for e in &ctts.entries {
-            for _ in 0..e.sample_count {
-                if let Some(c) = cts.get_mut(i) {
-                    *c += i64::from(e.sample_offset);
-                }
-                i += 1;
+            let end = i.saturating_add(e.sample_count as usize).min(n);
+            for c in &mut cts[i..end] {
+                *c = c.saturating_add(i64::from(e.sample_offset));
             }
+            i = end;
         }
     }
     cts

@@ -22,7 +22,7 @@ pub(super) fn scan_mdat(path: &Path, size: u64) -> Result<Vec<RawPicture>, Video
     let mut f = BufReader::new(File::open(path).map_err(io)?);
     let mut pos = 0u64;
     let mut head = [0u8; 8];
-    while pos + 8 <= size {
+    while size >= 8 && pos <= size - 8 {
         f.seek(SeekFrom::Start(pos)).map_err(io)?;
         f.read_exact(&mut head).map_err(io)?;
         let mut box_size = u32::from_be_bytes([head[0], head[1], head[2], head[3]]) as u64;
@@ -37,7 +37,7 @@ pub(super) fn scan_mdat(path: &Path, size: u64) -> Result<Vec<RawPicture>, Video
         if kind == b"mdat" {
             // An unfinished file still holds the placeholder size of an empty mdat (the
             // mp4 crate writes the real size last): then the media data run to the end.
-            let end = if box_size <= header + 8 || pos + box_size > size {
+            let end = if box_size <= header + 8 || box_size > size - pos {
                 size
             } else {
                 pos + box_size
@@ -50,10 +50,12 @@ pub(super) fn scan_mdat(path: &Path, size: u64) -> Result<Vec<RawPicture>, Video
             }
             return scan_nals(&mut f, payload, end, path);
         }
-        if box_size < 8 {
-            break;
+        // A size below the header's would not move on; one past the end ends the walk
+        // (a 64-bit size can be anything).
+        match pos.checked_add(box_size) {
+            Some(next) if box_size >= 8 => pos = next,
+            _ => break,
         }
-        pos += box_size;
     }
     Err(verr(
         path,

@@ -51,8 +51,9 @@ impl SpsFormat {
             if f.chroma_format_idc == 3 {
                 bits.bit()?; // separate_colour_plane_flag
             }
-            f.bit_depth_luma = 8 + bits.ue()?;
-            f.bit_depth_chroma = 8 + bits.ue()?;
+            // bit_depth_*_minus8: 0..=6 in a valid stream; a damaged one may say anything.
+            f.bit_depth_luma = 8u32.checked_add(bits.ue()?)?;
+            f.bit_depth_chroma = 8u32.checked_add(bits.ue()?)?;
         }
         Some(f)
     }
