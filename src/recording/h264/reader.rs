@@ -212,6 +212,18 @@ impl Mp4VideoReader {
             .iter()
             .map(|e| u64::from(e.sample_count))
             .sum();
+        // ... and divides by an `stsc` entry's samples per chunk: zero is damage too.
+        if t.trak
+            .mdia
+            .minf
+            .stbl
+            .stsc
+            .entries
+            .iter()
+            .any(|e| e.samples_per_chunk == 0)
+        {
+            return Err("the index has a chunk of zero samples".into());
+        }
         if timed < u64::from(t.sample_count()) {
             return Err(format!(
                 "the index times {timed} of its {} samples",
