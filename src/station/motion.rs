@@ -60,22 +60,18 @@ impl MotionGate {
 /// Pixels that differ between `prev` and `now` over the area of `now`; None when
 /// either is empty or they differ in size.
 fn changed_share(prev: &Mask, now: &Mask) -> Option<f64> {
-    let area = now.data.iter().filter(|&&v| v != 0).count();
-    if area == 0
-        || prev.width != now.width
-        || prev.height != now.height
-        || prev.data.len() != now.data.len()
-        || !prev.data.iter().any(|&v| v != 0)
-    {
+    if prev.width != now.width || prev.height != now.height || prev.data.len() != now.data.len() {
         return None;
     }
-    let changed = prev
-        .data
-        .iter()
-        .zip(&now.data)
-        .filter(|(a, b)| (**a != 0) != (**b != 0))
-        .count();
-    Some(changed as f64 / area as f64)
+    // One pass over both masks (the per-frame path): the area of each and their difference.
+    let (mut area, mut prev_area, mut changed) = (0usize, 0usize, 0usize);
+    for (a, b) in prev.data.iter().zip(&now.data) {
+        let (a, b) = ((*a != 0) as usize, (*b != 0) as usize);
+        prev_area += a;
+        area += b;
+        changed += a ^ b;
+    }
+    (area > 0 && prev_area > 0).then(|| changed as f64 / area as f64)
 }
 
 #[cfg(test)]
