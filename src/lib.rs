@@ -19,6 +19,7 @@ pub mod capture;
 pub mod cli;
 pub mod contour;
 pub mod deform;
+pub mod edit;
 pub mod eval;
 pub mod fit;
 pub mod fuzz;

@@ -48,6 +48,8 @@ enum Command {
     Live(fitstation::app::LiveArgs),
     /// Loop a recording for a while (shoppers coming and going); check memory, threads, files, results.
     Soak(fitstation::soak::SoakArgs),
+    /// Move a point of a fitted avatar by hand (the surface around follows), or undo it.
+    Edit(fitstation::edit::cli::EditArgs),
 }
 
 #[derive(Subcommand)]
@@ -124,6 +126,7 @@ fn run() -> anyhow::Result<()> {
         #[cfg(feature = "gui")]
         Command::Live(args) => fitstation::app::run_live_cli(args)?,
         Command::Soak(args) => fitstation::soak::run(&args)?,
+        Command::Edit(args) => fitstation::edit::cli::run(&args)?,
     }
     Ok(())
 }
