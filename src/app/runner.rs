@@ -357,7 +357,10 @@ fn capture_loop(
             }
         }
         controls.with_status(|s| {
-            s.problem = None;
+            // A pair without its side frame: the side camera is lost past its stall
+            // timeout and the station measures from the front camera alone.
+            s.problem = (!crate::pipeline::has_frame(&pair.side))
+                .then(|| "side camera lost: measuring from the front camera alone".to_string());
             s.pairs += 1;
             s.last_index = Some(pair.index);
         });

@@ -242,6 +242,12 @@ pub struct FaultInjector {
     rng: SplitMix64,
     /// Pairs formed so far: the index of the next one.
     formed: u64,
+    /// Source time since which `drop-side` has swallowed the side frames.
+    side_dropped_since: Option<f64>,
+    /// After this long without side frames the side camera counts as lost and the
+    /// front frames go on alone ([`super::ReconnectPolicy::stall_timeout_s`], as the
+    /// camera pair source does).
+    side_lost_after_s: f64,
 }
 
 impl FaultInjector {
@@ -260,6 +266,8 @@ impl FaultInjector {
             events: Vec::new(),
             rng: SplitMix64::new(NOISE_SEED),
             formed: 0,
+            side_dropped_since: None,
+            side_lost_after_s: super::ReconnectPolicy::default().stall_timeout_s,
         }
     }
 
@@ -357,7 +365,17 @@ impl FaultInjector {
         active: &[FaultKind],
     ) -> Result<Option<FramePair>, SourceError> {
         let t = pair.timestamp_s;
-        if active.contains(&FaultKind::CutSide) {
+        let dropped = |v: View| active.contains(&FaultKind::Drop(v));
+        // A side camera silent past the stall timeout is lost: front-only pairs, as the
+        // camera pair source gives them.
+        self.side_dropped_since = if dropped(View::Side) {
+            self.side_dropped_since.or(Some(t))
+        } else {
+            None
+        };
+        let side_lost = !dropped(View::Front)
+            && self.side_dropped_since.is_some_and(|t0| t - t0 > self.side_lost_after_s);
+        if active.contains(&FaultKind::CutSide) || side_lost {
             self.matcher.clear();
             let index = self.formed;
             self.formed += 1;
@@ -369,7 +387,6 @@ impl FaultInjector {
                 side: RgbImage::new(0, 0),
             }));
         }
-        let dropped = |v: View| active.contains(&FaultKind::Drop(v));
         if !dropped(View::Front) {
             let f = self.damage(View::Front, pair.front, active);
             self.matcher.push_front(t, f);
@@ -612,6 +629,28 @@ mod tests {
         for p in r.iter().flatten() {
             assert_eq!(p.1, p.2, "front and side of one moment");
         }
+    }
+
+    #[test]
+    fn a_side_camera_dropped_past_the_stall_timeout_leaves_front_only_pairs() {
+        let faults = parse_spec("drop-side@0.45:10").unwrap();
+        let mut inj = FaultInjector::new(Box::new(Counter { next: 0, len: 40 }), faults);
+        // Off the frame times' grid (one frame per 0.1 s), so no frame sits on the edge.
+        inj.side_lost_after_s = 1.95;
+        let (mut lost, mut front_only, mut paired) = (0, Vec::new(), 0);
+        loop {
+            match inj.next_pair() {
+                Ok(Some(p)) if p.side.width() == 0 => front_only.push(p.front[(0, 0)][0]),
+                Ok(Some(_)) => paired += 1,
+                Ok(None) => break,
+                Err(_) => lost += 1,
+            }
+        }
+        // Frames at 0.5 s to 2.4 s: lost (within the stall timeout); from 2.5 s on
+        // the front frames alone.
+        assert_eq!(paired, 5);
+        assert_eq!(lost, 20);
+        assert_eq!(front_only, (25..40).collect::<Vec<u8>>());
     }
 
     #[test]
