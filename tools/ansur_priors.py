@@ -65,14 +65,16 @@ print()
 # breadths and depths are its trunk sections' extents at the measurement levels
 # (tools/library_extents.csv, from `cargo test --release library_extents_csv --
 # --ignored --nocapture`); ANSUR II's are caliper measures at its own landmarks, so the
-# two differ by an offset of definitions (the mean, printed) that is not a person's
-# spread: the spread is the standard deviation about the library's line.
+# two differ by an offset (the mean, printed) that is partly one of definitions and
+# partly the library's bodies being shallower than real people for their breadth; the
+# station cannot tell the two parts apart from one view, so its one-view prior is the
+# root mean square about the library's line (offset and spread together).
 lib_path = os.path.join(here, "library_extents.csv")
 with open(lib_path, newline="") as f:
     lib = list(csv.DictReader(f))
 lc = lambda n: np.array([float(d[n]) for d in lib])
 print(f"front view alone (breadths and stature seen, depth unseen): {len(lib)} library bodies")
-print(f"{'girth':8} {'sd about ANSUR line':>20} {'sd about library line':>22} {'offset':>8}   (mm)")
+print(f"{'girth':8} {'sd about ANSUR line':>20} {'sd about library line':>22} {'offset':>8} {'rms about library line':>23}   (mm)")
 for name, breadth, depth in [
     ("chest", "chestbreadth", "chestdepth"),
     ("waist", "waistbreadth", "waistdepth"),
@@ -81,7 +83,7 @@ for name, breadth, depth in [
     a = np.column_stack([np.ones(len(lib)), lc(breadth), lc("stature")])
     coef, *_ = np.linalg.lstsq(a, lc(depth), rcond=None)
     r = col(depth) - np.column_stack([np.ones(len(data)), col(breadth), stature]) @ coef
-    print(f"{name:8} {resid_sd(col(depth), col(breadth), stature):20.1f} {r.std():22.1f} {r.mean():+8.1f}")
+    print(f"{name:8} {resid_sd(col(depth), col(breadth), stature):20.1f} {r.std():22.1f} {r.mean():+8.1f} {np.sqrt(np.mean(r * r)):23.1f}")
 # No thigh breadth or depth in ANSUR: the thigh girth's spread given what a front view
 # shows nearby (hip breadth, stature), all of it taken as the unseen depth's:
 # girth sd / (pi/2).

@@ -163,6 +163,10 @@ pub struct FitStats {
     pub residual_mm: f64,
     pub warm: bool,
     pub params: Option<ShapeParams>,
+    /// Standard deviation (mm) of a stature the front view alone gave (lifted from it and
+    /// moved to the head's depth, [`one_view::stature_sd_mm`]); None when the side view
+    /// or the operator gave it.
+    pub stature_sd_mm: Option<f64>,
 }
 
 /// Per-subject state kept between frames.
@@ -309,10 +313,13 @@ impl Fitter {
         };
         let views = [(&calib.front, front), (&calib.side, side.unwrap_or(unseen))];
         let placed;
+        let mut stature_sd_mm = None;
         let obs = match side {
             Some(_) => obs,
             None => {
-                placed = self.place_in_depth(calib, front, obs);
+                let (o, sd) = self.place_in_depth(calib, front, obs);
+                placed = o;
+                stature_sd_mm = sd;
                 &placed
             }
         };
@@ -320,6 +327,7 @@ impl Fitter {
         let warm = self.subject.is_some();
         let mut stats = FitStats {
             warm,
+            stature_sd_mm,
             ..Default::default()
         };
         if !warm {
@@ -342,6 +350,7 @@ impl Fitter {
                     };
                     stats = FitStats {
                         warm,
+                        stature_sd_mm,
                         ..Default::default()
                     };
                     Some(d)
@@ -392,26 +401,42 @@ impl Fitter {
     /// Without the side view: the trunk placed in depth behind the toes the front view
     /// sees on the floor, by the library's mean proportions, and a stature lifted from
     /// the front view moved to the head's depth ([`one_view`]). The observation as it
-    /// was when the feet are not seen.
+    /// was when the feet are not seen. With it, the standard deviation (mm) of a stature
+    /// lifted from the front view.
     fn place_in_depth(
         &self,
         calib: &StationCalibration,
         front: MaskRef<'_>,
         obs: &Observation,
-    ) -> Observation {
+    ) -> (Observation, Option<f64>) {
         let (Some(toes), Some(d)) = (
             one_view::toes_on_floor(&calib.front, front),
             self.depth_offsets,
         ) else {
-            return *obs;
+            return (*obs, None);
         };
         let mut o = *obs;
         let (toes_z, believed) = d.believed_toes_z(toes.z, obs.stature_m);
+        let mut stature_sd_mm = None;
         if let Some(plane_z) = obs.stature_plane_z {
             // The head's depth depends on the stature only through the offset: one step.
             let head_z = toes_z + d.head_top_rel * obs.stature_m;
             o.stature_m = one_view::height_at_depth(&calib.front, obs.stature_m, plane_z, head_z);
             o.stature_plane_z = None;
+            // Toes not believed stand anywhere within the mark's tolerance (uniform).
+            let toes_sd_m = if believed {
+                one_view::floor_metres_per_row(&calib.front, toes)
+                    .map_or(one_view::MARK_TOLERANCE_M, |m| one_view::TOE_ROW_SD_PX * m)
+            } else {
+                one_view::MARK_TOLERANCE_M / 3f64.sqrt()
+            };
+            let head = DVec3::new(toes.x, o.stature_m, head_z);
+            stature_sd_mm = Some(one_view::stature_sd_mm(
+                &calib.front,
+                head,
+                toes_sd_m,
+                d.head_top_sd_rel * o.stature_m,
+            ));
         }
         o.torso_point.z = toes_z + d.trunk_rel * o.stature_m;
         if debug_enabled() {
@@ -420,7 +445,7 @@ impl Fitter {
                 o.torso_point.z, obs.stature_m, o.stature_m
             );
         }
-        o
+        (o, stature_sd_mm)
     }
 
     /// Correspondence and decoding rounds on the current subject state.

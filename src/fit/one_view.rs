@@ -29,6 +29,11 @@ const FOOT_BAND_REL: f64 = 0.015;
 /// edge of the feet (feet of the floor's colour), not a subject standing there.
 pub const MARK_TOLERANCE_M: f64 = 0.10;
 
+/// Standard deviation of the feet's lowest silhouette row about the floor contact,
+/// pixels: the mask's lower edge sits a few pixels above where the toes meet the floor
+/// (shadow and anti-aliasing at a grazing angle; seen while building the placement).
+pub const TOE_ROW_SD_PX: f64 = 3.0;
+
 /// The depths of a standing body relative to its toes, fractions of its stature: the
 /// trunk's centre, the head top and the feet' centre behind (negative: -Z of) the front
 /// of the toes.
@@ -37,6 +42,9 @@ pub struct DepthOffsets {
     pub trunk_rel: f64,
     pub head_top_rel: f64,
     pub feet_rel: f64,
+    /// Spread (standard deviation) of `head_top_rel` over the bodies averaged by
+    /// [`Self::mean`]: how well the head's depth follows from the toes'. 0 for one body.
+    pub head_top_sd_rel: f64,
 }
 
 impl DepthOffsets {
@@ -58,16 +66,20 @@ impl DepthOffsets {
             trunk_rel: (trunk_centre.z - toe_z) / stature,
             head_top_rel: (head.z - toe_z) / stature,
             feet_rel: (0.5 * (heel_z + toe_z) - toe_z) / stature,
+            head_top_sd_rel: 0.0,
         })
     }
 
-    /// Mean of several bodies' offsets.
+    /// Mean of several bodies' offsets, with the spread of the head's.
     pub fn mean(all: &[DepthOffsets]) -> Option<DepthOffsets> {
         let n = all.len() as f64;
+        let head_top_rel = all.iter().map(|d| d.head_top_rel).sum::<f64>() / n;
+        let var = all.iter().map(|d| (d.head_top_rel - head_top_rel).powi(2)).sum::<f64>() / n;
         (n > 0.0).then(|| DepthOffsets {
             trunk_rel: all.iter().map(|d| d.trunk_rel).sum::<f64>() / n,
-            head_top_rel: all.iter().map(|d| d.head_top_rel).sum::<f64>() / n,
+            head_top_rel,
             feet_rel: all.iter().map(|d| d.feet_rel).sum::<f64>() / n,
+            head_top_sd_rel: var.sqrt(),
         })
     }
 
@@ -109,6 +121,26 @@ pub fn toes_on_floor(cam: &Camera, front: MaskRef<'_>) -> Option<DVec3> {
     }
     let t = -ray.origin.y / ray.dir.y;
     (t > 0.0).then(|| ray.at(t))
+}
+
+/// Metres along the floor's z per image row at a floor point, as `cam` sees it.
+pub fn floor_metres_per_row(cam: &Camera, on_floor: DVec3) -> Option<f64> {
+    const STEP_M: f64 = 0.01;
+    let a = cam.project(on_floor)?;
+    let b = cam.project(on_floor + DVec3::new(0.0, 0.0, STEP_M))?;
+    let rows = (b.y - a.y).abs();
+    (rows > 1e-9).then(|| STEP_M / rows)
+}
+
+/// Standard deviation (mm) of a stature lifted from the front view and moved along its
+/// ray to the head's depth ([`height_at_depth`]): the head's depth is the toes' plus the
+/// library's mean offset, so it is off by the toes' error (`toes_sd_m`) and by how far
+/// people's heads stand from their toes beyond that mean (`head_top_sd_m`), and a depth
+/// error moves the height by the ray's slope, `|head y - camera y| / |camera z - head z|`.
+pub fn stature_sd_mm(cam: &Camera, head_top: DVec3, toes_sd_m: f64, head_top_sd_m: f64) -> f64 {
+    let c = cam.center_in_station();
+    let slope = (head_top.y - c.y).abs() / (c.z - head_top.z).abs().max(1e-3);
+    slope * toes_sd_m.hypot(head_top_sd_m) * 1000.0
 }
 
 /// The height of a point seen at height `y_on_plane` on the plane z = `plane_z`, moved

@@ -471,7 +471,7 @@ impl StationProcessor {
         };
         let triangles = self.fitter.template_triangles().to_vec();
         let avatar = TriMesh::new(positions, triangles);
-        let measured = self.measure_avatar(&avatar, side_seen);
+        let measured = self.measure_avatar(&avatar, side_seen, stats.stature_sd_mm);
         timer.lap("measure");
         if let Err(e) = measured {
             let mut s = self.snapshot(pair.index, Phase::Guiding, Some(result));
@@ -575,8 +575,14 @@ impl StationProcessor {
     }
 
     /// Measures the fitted avatar and adds its values and their frame uncertainties
-    /// (one-view ones without the side view) to the smoothed windows.
-    fn measure_avatar(&mut self, avatar: &TriMesh, side_seen: bool) -> Result<(), String> {
+    /// (one-view ones without the side view; `stature_sd_mm`: the fit's standard
+    /// deviation of a stature the front view alone gave) to the smoothed windows.
+    fn measure_avatar(
+        &mut self,
+        avatar: &TriMesh,
+        side_seen: bool,
+        stature_sd_mm: Option<f64>,
+    ) -> Result<(), String> {
         let m = crate::measure::measure(avatar).map_err(|e| e.to_string())?;
         let map = m.to_report_map();
         for (k, (s, sigma)) in MEASUREMENT_KEYS
@@ -591,10 +597,10 @@ impl StationProcessor {
                 self.fitter
                     .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
             });
-            let frame_sigma = if side_seen {
-                uncertainty::frame_sigma_mm(k, v, evidence)
-            } else {
-                uncertainty::frame_sigma_one_view_mm(k, v, evidence)
+            let frame_sigma = match (side_seen, *k == "stature", stature_sd_mm) {
+                (false, true, Some(sd)) => uncertainty::STATURE_SIGMA_MM.hypot(sd),
+                (true, ..) => uncertainty::frame_sigma_mm(k, v, evidence),
+                _ => uncertainty::frame_sigma_one_view_mm(k, v, evidence),
             };
             if crate::fit::debug_enabled() {
                 eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");

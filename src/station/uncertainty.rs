@@ -136,20 +136,22 @@ pub fn frame_sigma_mm(key: &str, girth_mm: f64, evidence: Option<LevelEvidence>)
 }
 
 /// How far a section's depth can be from what the front view and the stature show, mm
-/// (standard deviation). A fit without the side view takes the depth from the shape
-/// library's body for those widths and that stature, so this is the spread of real
-/// people's depths about the library's depth-given-breadth-and-stature line: over ANSUR
-/// II's 6,068 adults against the library's 252 bodies (`python3 tools/ansur_priors.py`,
-/// "front view alone", the larger of the spreads about ANSUR's own line and about the
-/// library's; the mean offset between the two is one of definitions: calipers at ANSUR's
-/// landmarks against section extents at the spec's levels). ANSUR II has no thigh
-/// breadth or depth: the thigh takes its girth's spread given hip breadth and stature
-/// (33.0 mm), all as depth, over pi/2.
+/// (root mean square). A fit without the side view takes the depth from the shape
+/// library's body for those widths and that stature, so this is how far real people's
+/// depths lie from the library's depth-given-breadth-and-stature line: over ANSUR II's
+/// 6,068 adults against the library's 252 bodies (`python3 tools/ansur_priors.py`,
+/// "front view alone", "rms about library line"). It counts the mean offset between
+/// ANSUR and the library (chest +41.8, waist -7.8, hip +14.5 mm) with the spread about
+/// it (25.3, 17.3, 18.9 mm): the offset is partly one of definitions (calipers at
+/// ANSUR's landmarks against section extents at the spec's levels) and partly the
+/// library's bodies being shallower than people, and one view cannot tell which. ANSUR
+/// II has no thigh breadth or depth: the thigh takes its girth's spread given hip
+/// breadth and stature (33.0 mm), all as depth, over pi/2.
 pub fn depth_prior_one_view_mm(key: &str) -> Option<f64> {
     Some(match key {
-        "chest_girth" => 25.3,
-        "waist_girth" => 17.3,
-        "hip_girth" => 18.9,
+        "chest_girth" => 48.9,
+        "waist_girth" => 19.0,
+        "hip_girth" => 23.8,
         "thigh_girth_left" | "thigh_girth_right" => 21.0,
         _ => return None,
     })
