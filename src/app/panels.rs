@@ -146,11 +146,14 @@ impl StationApp {
         }) {
             ui.label(RichText::new(m).color(egui::Color32::from_rgb(230, 160, 40)));
         }
-        let measurements: Vec<MeasurementValue> = self
-            .current
-            .as_ref()
-            .map(|s| s.measurements.clone())
-            .unwrap_or_default();
+        // Hand edits: the frozen fit's values plus each one's change from the edits.
+        let (measurements, edited) = self.edit.edited_measurements().unwrap_or_else(|| {
+            let live = self.current.as_ref().map(|s| s.measurements.clone());
+            (live.unwrap_or_default(), Vec::new())
+        });
+        if !edited.is_empty() || self.edit.frozen() {
+            ui.label(RichText::new("Edited by hand (avatar frozen)").color(EDITED_COLOUR));
+        }
         if measurements.is_empty() {
             ui.label("waiting for a fit…");
         } else {
@@ -165,7 +168,14 @@ impl StationApp {
                                 RichText::new(value_text(m.value_mm, m.uncertainty_mm)).monospace(),
                             );
                         });
-                        stability_indicator(ui, m.stability_mm);
+                        match edited.iter().find(|(k, _)| *k == m.name) {
+                            Some((_, d)) => {
+                                fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
+                                    ui.label(RichText::new(format!("edited by hand {d:+.1}")).small().color(EDITED_COLOUR));
+                                });
+                            }
+                            None => stability_indicator(ui, m.stability_mm),
+                        }
                         uncertainty_flag(ui, m);
                         ui.end_row();
                     }
@@ -259,6 +269,9 @@ impl StationApp {
         rows
     }
 }
+
+/// Colour of the words that mark values edited by hand.
+const EDITED_COLOUR: Color32 = Color32::from_rgb(150, 200, 255);
 
 /// Report key -> label ("chest_girth" -> "chest girth").
 fn pretty_name(key: &str) -> String {

@@ -1,0 +1,471 @@
+//! The operator's hand edits of the avatar on screen (issue 23 item 2): with "Edit avatar"
+//! on, a primary-button press on the avatar view picks the vertex under the pointer, a
+//! drag moves it in the plane through it facing the eye, and [`crate::edit::AvatarEditor`]
+//! makes the surface follow and measures again, every frame of the drag; the secondary
+//! button still turns the view. The avatar is frozen into the editor at the first press:
+//! while edits exist or a drag is under way, new frames do not replace it (the screen
+//! says so), the measurements panel shows the edited values and the operator's exports
+//! carry the edits ([`crate::edit::AvatarEditor::mark_report`]).
+//!
+//! Picking and unprojection are pure functions ([`pick_vertex`], [`unproject_delta`]):
+//! pointer positions are points relative to the avatar view's top-left corner (+y
+//! down), the view-projection is the orbit camera's (`OrbitCamera::view_proj`, clip from
+//! station, wgpu depth 0..1), vertices are in the station frame (metres).
+
+use super::*;
+use crate::edit::{AvatarEditor, DEFAULT_REACH_M};
+use glam::{DMat4, DVec3, DVec4, Mat4};
+use serde_json::{json, Value};
+
+/// A vertex is picked when it is seen within this many points of the pointer.
+pub const PICK_RADIUS_PT: f32 = 8.0;
+/// Range of the reach slider (millimetres along the surface).
+const REACH_RANGE_MM: std::ops::RangeInclusive<f64> = 30.0..=400.0;
+
+/// Where a point of the station is seen in a view of `size_pt` points: its position from
+/// the view's top-left corner (points) and its depth (the clip `w`, metres along the
+/// view direction); `None` behind the eye or outside the depth range.
+pub fn project(view_proj: &DMat4, size_pt: Vec2, p: DVec3) -> Option<(Vec2, f64)> {
+    let c = *view_proj * p.extend(1.0);
+    if c.w <= f64::from(super::orbit::NEAR_M) || c.z < 0.0 || c.z > c.w {
+        return None;
+    }
+    let (x, y) = (c.x / c.w, c.y / c.w);
+    let at = Vec2::new(
+        ((x + 1.0) * 0.5 * f64::from(size_pt.x)) as f32,
+        ((1.0 - y) * 0.5 * f64::from(size_pt.y)) as f32,
+    );
+    Some((at, c.w))
+}
+
+/// The vertex under the pointer: among the vertices seen within `radius_pt` of
+/// `pointer_pt`, the one nearest to the eye (so a vertex hidden behind the surface, which
+/// always has a nearer one of that surface beside it on screen, is not picked).
+pub fn pick_vertex(
+    positions: &[DVec3],
+    view_proj: Mat4,
+    size_pt: Vec2,
+    pointer_pt: Vec2,
+    radius_pt: f32,
+) -> Option<u32> {
+    let vp = view_proj.as_dmat4();
+    let r2 = radius_pt * radius_pt;
+    positions
+        .iter()
+        .enumerate()
+        .filter_map(|(i, p)| {
+            let (at, depth) = project(&vp, size_pt, *p)?;
+            ((at - pointer_pt).length_sq() <= r2).then_some((i as u32, depth))
+        })
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
+
+/// The move in the station (metres) that carries `anchor_m` by `delta_pt` points on
+/// screen while keeping its depth: the pointer's move unprojected through the inverse
+/// view-projection in the plane through the anchor facing the eye.
+pub fn unproject_delta(
+    view_proj: Mat4,
+    size_pt: Vec2,
+    anchor_m: DVec3,
+    delta_pt: Vec2,
+) -> Option<DVec3> {
+    let vp = view_proj.as_dmat4();
+    let c = vp * anchor_m.extend(1.0);
+    if c.w <= f64::from(super::orbit::NEAR_M) || size_pt.x <= 0.0 || size_pt.y <= 0.0 {
+        return None;
+    }
+    let ndc = c.truncate() / c.w;
+    let moved = DVec4::new(
+        ndc.x + 2.0 * f64::from(delta_pt.x) / f64::from(size_pt.x),
+        ndc.y - 2.0 * f64::from(delta_pt.y) / f64::from(size_pt.y),
+        ndc.z,
+        1.0,
+    );
+    let back = vp.inverse() * moved;
+    let p = back.truncate() / back.w;
+    p.is_finite().then(|| p - anchor_m)
+}
+
+/// The avatar frozen for editing and what it was frozen from.
+struct Session {
+    editor: AvatarEditor,
+    /// The station's avatar the editor started from (compared for an exact undo).
+    fitted: Arc<crate::mesh::TriMesh>,
+    /// The edited avatar as drawn (a new one after each change).
+    shown: Arc<crate::mesh::TriMesh>,
+    /// The station's measurements when the avatar was frozen (the "fit" values).
+    fit_values: Vec<MeasurementValue>,
+}
+
+/// A drag under way on screen.
+struct ScreenDrag {
+    anchor_m: DVec3,
+    view_proj: Mat4,
+    size_pt: Vec2,
+    press_pt: Pos2,
+    /// The pointer's position when the handle was last moved.
+    last_pt: Pos2,
+}
+
+/// What the screen's edits did, for `--ui-edits-out` (the window test reads it).
+#[derive(Default)]
+struct EditRecord {
+    picks: Vec<Value>,
+    edits: Vec<Value>,
+    undos: Vec<Value>,
+    errors: Vec<String>,
+}
+
+/// The screen's edit state: the toggle, the reach, the frozen avatar and the drag.
+pub(super) struct EditTool {
+    /// "Edit avatar" is on (operator mode only).
+    pub on: bool,
+    pub reach_mm: f64,
+    session: Option<Session>,
+    drag: Option<ScreenDrag>,
+    /// Duration of each drag step (move, measure, copy for the screen), milliseconds.
+    step_ms: Vec<f64>,
+    record: EditRecord,
+}
+
+impl Default for EditTool {
+    fn default() -> Self {
+        EditTool {
+            on: false,
+            reach_mm: DEFAULT_REACH_M * 1e3,
+            session: None,
+            drag: None,
+            step_ms: Vec::new(),
+            record: EditRecord::default(),
+        }
+    }
+}
+
+impl EditTool {
+    /// Edits exist or a drag is under way: the edited avatar stays on screen.
+    pub fn frozen(&self) -> bool {
+        self.session
+            .as_ref()
+            .is_some_and(|s| s.editor.edits().len() > 0 || s.editor.dragging())
+    }
+
+    /// The edited avatar to draw while [`Self::frozen`].
+    pub fn shown_mesh(&self) -> Option<Arc<crate::mesh::TriMesh>> {
+        self.session.as_ref().filter(|_| self.frozen()).map(|s| s.shown.clone())
+    }
+
+    /// The editor while [`Self::frozen`].
+    pub fn editor(&self) -> Option<&AvatarEditor> {
+        self.session.as_ref().filter(|_| self.frozen()).map(|s| &s.editor)
+    }
+
+    /// The line over the avatar view saying what holds it.
+    pub fn view_note(&self, operator: bool) -> Option<&'static str> {
+        if self.frozen() {
+            Some("Edited by hand:\nnew frames do not replace it")
+        } else if self.on && operator {
+            Some("Edit avatar: drag a point of the body (right button turns)")
+        } else {
+            None
+        }
+    }
+
+    pub fn dragging(&self) -> bool {
+        self.drag.is_some()
+    }
+
+    /// Picks the vertex under `pointer` (screen points) on `shown` as seen by `orbit` in
+    /// `rect`, freezing the avatar first when no edit holds it; returns the vertex.
+    ///
+    /// # Errors
+    /// No avatar on screen, or one the editor cannot measure or solve around the vertex.
+    pub fn press(
+        &mut self,
+        shown: Option<Arc<crate::mesh::TriMesh>>,
+        fit_values: &[MeasurementValue],
+        orbit: &OrbitCamera,
+        rect: Rect,
+        pointer: Pos2,
+    ) -> Result<Option<u32>, String> {
+        let shown = shown.ok_or("no avatar on screen to edit")?;
+        let keep = self.frozen() || self.session.as_ref().is_some_and(|s| Arc::ptr_eq(&s.fitted, &shown));
+        if !keep {
+            let editor = AvatarEditor::new((*shown).clone()).map_err(|e| e.to_string())?;
+            self.session = Some(Session {
+                editor,
+                fitted: shown.clone(),
+                shown,
+                fit_values: fit_values.to_vec(),
+            });
+        }
+        let Some(s) = self.session.as_mut() else {
+            return Ok(None);
+        };
+        let size_pt = rect.size();
+        let view_proj = orbit.view_proj(size_pt.x / size_pt.y.max(1.0));
+        let pointer_pt = pointer - rect.min;
+        let Some(v) = pick_vertex(&s.shown.positions, view_proj, size_pt, pointer_pt, PICK_RADIUS_PT) else {
+            return Ok(None);
+        };
+        s.editor.begin_drag(v, self.reach_mm / 1e3).map_err(|e| e.to_string())?;
+        let anchor_m = s.shown.positions[v as usize];
+        self.drag = Some(ScreenDrag { anchor_m, view_proj, size_pt, press_pt: pointer, last_pt: pointer });
+        self.record.picks.push(json!({
+            "vertex": v,
+            "at_m": [anchor_m.x, anchor_m.y, anchor_m.z],
+            "pointer_pt": [pointer_pt.x, pointer_pt.y],
+        }));
+        Ok(Some(v))
+    }
+
+    /// Moves the handle under way to where the pointer (screen points) now is.
+    ///
+    /// # Errors
+    /// The editor refused the move (too far, not measurable): the handle stays.
+    pub fn drag_to(&mut self, pointer: Pos2) -> Result<(), String> {
+        let (Some(d), Some(s)) = (self.drag.as_mut(), self.session.as_mut()) else {
+            return Ok(());
+        };
+        if pointer == d.last_pt {
+            return Ok(());
+        }
+        let t0 = Instant::now();
+        let offset = unproject_delta(d.view_proj, d.size_pt, d.anchor_m, pointer - d.press_pt)
+            .ok_or("the pointer cannot be unprojected")?;
+        s.editor.drag_to(offset).map_err(|e| e.to_string())?;
+        d.last_pt = pointer;
+        s.shown = Arc::new(s.editor.mesh().clone());
+        self.step_ms.push(t0.elapsed().as_secs_f64() * 1e3);
+        Ok(())
+    }
+
+    /// Lets go of the handle; the edit made, in words, for the log.
+    pub fn release(&mut self) -> Option<String> {
+        let d = self.drag.take()?;
+        let s = self.session.as_mut()?;
+        let edit = s.editor.end_drag()?;
+        let line = edit_line(edit);
+        let mut listed = edit.to_json();
+        // The pointer's move and the metres per point at the handle's depth.
+        let drag_pt = d.last_pt - d.press_pt;
+        let m_per_pt = unproject_delta(d.view_proj, d.size_pt, d.anchor_m, Vec2::X).map(|v| v.length());
+        if let Some(o) = listed.as_object_mut() {
+            o.insert("drag_pt".into(), json!([drag_pt.x, drag_pt.y]));
+            o.insert("m_per_pt".into(), json!(m_per_pt));
+        }
+        self.record.edits.push(listed);
+        s.shown = Arc::new(s.editor.mesh().clone());
+        Some(line)
+    }
+
+    /// Takes the last edit back; said in words for the log.
+    pub fn undo(&mut self) -> Option<String> {
+        self.drag = None;
+        let s = self.session.as_mut()?;
+        let edit = s.editor.undo()?;
+        let exact = s.editor.mesh().positions == s.fitted.positions;
+        s.shown = Arc::new(s.editor.mesh().clone());
+        self.record.undos.push(json!({
+            "vertex": edit.vertex,
+            "edits_left": s.editor.edits().len(),
+            "mesh_equals_fit": exact,
+        }));
+        Some(format!("undid the edit at the {}", edit.near))
+    }
+
+    /// Forgets the edits: the live avatar comes back.
+    pub fn discard(&mut self) {
+        self.drag = None;
+        self.session = None;
+    }
+
+    /// Notes a refused press or drag (for the log and the record).
+    pub fn note_error(&mut self, e: &str) -> String {
+        self.record.errors.push(e.to_string());
+        format!("edit: {e}")
+    }
+
+    /// While frozen: the measurements as edited (the frozen fit's values plus each
+    /// value's change from the edits) and the changes themselves (report keys, mm).
+    pub fn edited_measurements(&self) -> Option<(Vec<MeasurementValue>, Vec<(String, f64)>)> {
+        let s = self.session.as_ref().filter(|_| self.frozen())?;
+        let changes = s.editor.changes_mm();
+        let values = s
+            .fit_values
+            .iter()
+            .map(|m| {
+                let d = changes.iter().find(|(k, _)| *k == m.name).map_or(0.0, |c| c.1);
+                MeasurementValue { value_mm: m.value_mm + d, ..m.clone() }
+            })
+            .collect();
+        Some((values, changes))
+    }
+
+    /// The frozen fit's measurements (what an export starts from while frozen).
+    pub fn fit_values(&self) -> Option<&[MeasurementValue]> {
+        self.session.as_ref().filter(|_| self.frozen()).map(|s| &s.fit_values[..])
+    }
+
+    /// What the edits did, for `--ui-edits-out`: picks, edits (vertex, offset, changes),
+    /// undos (whether the mesh equals the fitted one again), errors, drag step times.
+    pub fn record_json(&self) -> Value {
+        let mut ms = self.step_ms.clone();
+        ms.sort_by(f64::total_cmp);
+        let median = ms.get(ms.len() / 2).copied();
+        json!({
+            "picks": self.record.picks,
+            "edits": self.record.edits,
+            "undos": self.record.undos,
+            "errors": self.record.errors,
+            "edits_now": self.session.as_ref().map_or(0, |s| s.editor.edits().len()),
+            "drag_steps": ms.len(),
+            "drag_step_ms_median": median,
+            "drag_step_ms_max": ms.last(),
+        })
+    }
+
+    /// The operator panel's section: the toggle, what is frozen, the reach, the edits,
+    /// Undo, Discard and Done. Returns lines for the operator's log.
+    pub fn section_ui(&mut self, ui: &mut egui::Ui) -> Vec<String> {
+        let mut log = Vec::new();
+        ui.checkbox(&mut self.on, "Edit avatar");
+        if !self.on && !self.frozen() {
+            ui.label(RichText::new("Drag a point of the avatar to correct the fit by hand.").small());
+            return log;
+        }
+        let n = self.session.as_ref().map_or(0, |s| s.editor.edits().len());
+        let state = if self.frozen() {
+            format!("Avatar frozen with {n} hand edit(s): new frames do not replace it.")
+        } else {
+            "Press and drag on the avatar (right button turns the view); the live avatar is frozen at the first press.".into()
+        };
+        ui.label(RichText::new(state).color(Color32::from_rgb(150, 200, 255)));
+        ui.horizontal(|ui| {
+            ui.label("reach");
+            ui.add(egui::Slider::new(&mut self.reach_mm, REACH_RANGE_MM).suffix(" mm"));
+        });
+        if let Some(s) = &self.session {
+            for e in s.editor.edits() {
+                ui.label(RichText::new(edit_line(e)).small());
+            }
+        }
+        ui.horizontal(|ui| {
+            if ui.add_enabled(n > 0, egui::Button::new("Undo")).clicked() {
+                log.extend(self.undo());
+            }
+            if ui.add_enabled(n > 0, egui::Button::new("Discard edits")).clicked() {
+                self.discard();
+                log.push("hand edits discarded: the live avatar is back".into());
+            }
+            if self.on && ui.button("Done").clicked() {
+                self.on = false;
+            }
+        });
+        log
+    }
+}
+
+/// An edit in words: "waist: 20.0 mm, waist_girth +15.6 mm".
+pub fn edit_line(e: &crate::edit::HandleEdit) -> String {
+    let mut s = format!("{}: {:.1} mm", e.near, e.offset_m.length() * 1e3);
+    for (k, d) in &e.changes_mm {
+        s.push_str(&format!(", {k} {d:+.1} mm"));
+    }
+    s
+}
+
+impl StationApp {
+    /// Primary-button presses and drags over the avatar view while "Edit avatar" is on.
+    pub(super) fn edit_input(&mut self, ui: &egui::Ui, resp: &egui::Response, rect: Rect) {
+        use egui::PointerButton::Primary;
+        let (origin, latest) = ui.input(|i| (i.pointer.press_origin(), i.pointer.latest_pos()));
+        if resp.drag_started_by(Primary) {
+            let fits = self.current.as_ref().map(|s| s.measurements.clone()).unwrap_or_default();
+            let shown = self.shown_avatar.clone();
+            match origin.map(|p| self.edit.press(shown, &fits, &self.orbit, rect, p)) {
+                Some(Ok(Some(v))) => self.log(format!("edit: picked vertex {v}")),
+                Some(Ok(None)) | None => self.log("edit: no avatar under the pointer".into()),
+                Some(Err(e)) => {
+                    let line = self.edit.note_error(&e);
+                    self.log(line);
+                }
+            }
+        }
+        if !self.edit.dragging() {
+            return;
+        }
+        if resp.dragged_by(Primary) || resp.drag_stopped() {
+            if let Some(p) = latest {
+                if let Err(e) = self.edit.drag_to(p) {
+                    let line = self.edit.note_error(&e);
+                    self.log(line);
+                }
+            }
+            ui.ctx().request_repaint();
+        }
+        if resp.drag_stopped() || !ui.input(|i| i.pointer.primary_down()) {
+            if let Some(line) = self.edit.release() {
+                self.log(format!("hand edit {line}"));
+            }
+        }
+    }
+
+    /// The avatar to draw while edits hold it: the edited one (uploaded as a new avatar
+    /// when it changed).
+    pub(super) fn show_edited(&mut self, mesh: Arc<crate::mesh::TriMesh>) -> Option<Arc<crate::mesh::TriMesh>> {
+        if !self.shown_avatar.as_ref().is_some_and(|m| Arc::ptr_eq(m, &mesh)) {
+            self.shown_avatar = Some(mesh);
+            self.avatar_generation += 1;
+        }
+        self.shown_avatar.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera() -> (Mat4, Vec2) {
+        let size = Vec2::new(400.0, 600.0);
+        let orbit = OrbitCamera::default();
+        (orbit.view_proj(size.x / size.y), size)
+    }
+
+    #[test]
+    fn the_front_vertex_is_picked_not_the_one_behind_it() {
+        let (vp, size) = camera();
+        let t = OrbitCamera::default().target;
+        let target = DVec3::new(t.x as f64, t.y as f64, t.z as f64);
+        // Behind first in the list, in front second; both on the line of sight.
+        let positions = vec![target - DVec3::Z * 0.1, target + DVec3::Z * 0.1, target + DVec3::X];
+        let centre = size * 0.5;
+        assert_eq!(pick_vertex(&positions, vp, size, centre, PICK_RADIUS_PT), Some(1));
+        // A few points off still picks it; far off picks nothing.
+        assert_eq!(pick_vertex(&positions, vp, size, centre + Vec2::new(5.0, 0.0), PICK_RADIUS_PT), Some(1));
+        assert_eq!(pick_vertex(&positions, vp, size, centre + Vec2::new(0.0, 40.0), PICK_RADIUS_PT), None);
+    }
+
+    #[test]
+    fn a_pixel_delta_unprojects_to_metres_at_the_vertex_depth() {
+        let (vp, size) = camera();
+        let orbit = OrbitCamera::default();
+        let t = orbit.target;
+        let anchor = DVec3::new(t.x as f64, t.y as f64, t.z as f64);
+        // At the target the view's height spans 2 d tan(fov / 2) metres.
+        let m_per_pt = 2.0 * orbit.distance_m as f64 * (f64::from(super::super::orbit::FOV_Y_RAD) * 0.5).tan() / 600.0;
+        let d = unproject_delta(vp, size, anchor, Vec2::new(30.0, -20.0)).expect("delta");
+        // The default camera looks from +Z, slightly from above: right is +X, up is
+        // about +Y, and the move stays at the anchor's depth.
+        assert!((d.x - 30.0 * m_per_pt).abs() < 1e-4, "{d:?} vs {m_per_pt}");
+        assert!((d.length() - 36.0555 * m_per_pt).abs() < 1e-4, "{d:?}");
+        let eye = orbit.eye();
+        let eye = DVec3::new(eye.x as f64, eye.y as f64, eye.z as f64);
+        let view_dir = (anchor - eye).normalize();
+        assert!(d.dot(view_dir).abs() < 1e-6, "the move leaves the plane facing the eye");
+        // It lands where the pointer is.
+        let (at0, _) = project(&vp.as_dmat4(), size, anchor).expect("seen");
+        let (at1, _) = project(&vp.as_dmat4(), size, anchor + d).expect("seen");
+        assert!(((at1 - at0) - Vec2::new(30.0, -20.0)).length() < 1e-3);
+    }
+}
