@@ -120,7 +120,10 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
 
     // The handle moved by the dragged distance at its depth.
     let drag_pt = e["drag_pt"].as_array().expect("drag_pt");
-    let drag_len = drag_pt[0].as_f64().unwrap_or(0.0).hypot(drag_pt[1].as_f64().unwrap_or(0.0));
+    let drag_len = drag_pt[0]
+        .as_f64()
+        .unwrap_or(0.0)
+        .hypot(drag_pt[1].as_f64().unwrap_or(0.0));
     let m_per_pt = e["m_per_pt"].as_f64().expect("m_per_pt");
     let moved_mm = e["distance_mm"].as_f64().expect("distance");
     assert!(moved_mm > 5.0, "the handle moved {moved_mm} mm");
@@ -137,12 +140,21 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         "no girth changed: {changes:?}"
     );
     let exported = read_json(&export_dir.join("measurements.json"));
-    assert_eq!(exported["hand_edits"].as_array().map(Vec::len), Some(1), "{exported}");
+    assert_eq!(
+        exported["hand_edits"].as_array().map(Vec::len),
+        Some(1),
+        "{exported}"
+    );
     assert!(exported["measurements_fit_mm"].is_object(), "{exported}");
-    let marked = exported["edited_by_hand"].as_array().expect("edited_by_hand");
+    let marked = exported["edited_by_hand"]
+        .as_array()
+        .expect("edited_by_hand");
     assert!(!marked.is_empty(), "{exported}");
     let csv = std::fs::read_to_string(export_dir.join("measurements.csv")).expect("csv");
-    assert!(csv.starts_with("name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm"), "{csv}");
+    assert!(
+        csv.starts_with("name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm"),
+        "{csv}"
+    );
 
     // Undo gives back the fitted mesh exactly.
     let undos = rec["undos"].as_array().expect("undos");

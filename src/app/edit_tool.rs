@@ -152,12 +152,18 @@ impl EditTool {
 
     /// The edited avatar to draw while [`Self::frozen`].
     pub fn shown_mesh(&self) -> Option<Arc<crate::mesh::TriMesh>> {
-        self.session.as_ref().filter(|_| self.frozen()).map(|s| s.shown.clone())
+        self.session
+            .as_ref()
+            .filter(|_| self.frozen())
+            .map(|s| s.shown.clone())
     }
 
     /// The editor while [`Self::frozen`].
     pub fn editor(&self) -> Option<&AvatarEditor> {
-        self.session.as_ref().filter(|_| self.frozen()).map(|s| &s.editor)
+        self.session
+            .as_ref()
+            .filter(|_| self.frozen())
+            .map(|s| &s.editor)
     }
 
     /// The line over the avatar view saying what holds it.
@@ -189,7 +195,11 @@ impl EditTool {
         pointer: Pos2,
     ) -> Result<Option<u32>, String> {
         let shown = shown.ok_or("no avatar on screen to edit")?;
-        let keep = self.frozen() || self.session.as_ref().is_some_and(|s| Arc::ptr_eq(&s.fitted, &shown));
+        let keep = self.frozen()
+            || self
+                .session
+                .as_ref()
+                .is_some_and(|s| Arc::ptr_eq(&s.fitted, &shown));
         if !keep {
             let editor = AvatarEditor::new((*shown).clone()).map_err(|e| e.to_string())?;
             self.session = Some(Session {
@@ -205,12 +215,26 @@ impl EditTool {
         let size_pt = rect.size();
         let view_proj = orbit.view_proj(size_pt.x / size_pt.y.max(1.0));
         let pointer_pt = pointer - rect.min;
-        let Some(v) = pick_vertex(&s.shown.positions, view_proj, size_pt, pointer_pt, PICK_RADIUS_PT) else {
+        let Some(v) = pick_vertex(
+            &s.shown.positions,
+            view_proj,
+            size_pt,
+            pointer_pt,
+            PICK_RADIUS_PT,
+        ) else {
             return Ok(None);
         };
-        s.editor.begin_drag(v, self.reach_mm / 1e3).map_err(|e| e.to_string())?;
+        s.editor
+            .begin_drag(v, self.reach_mm / 1e3)
+            .map_err(|e| e.to_string())?;
         let anchor_m = s.shown.positions[v as usize];
-        self.drag = Some(ScreenDrag { anchor_m, view_proj, size_pt, press_pt: pointer, last_pt: pointer });
+        self.drag = Some(ScreenDrag {
+            anchor_m,
+            view_proj,
+            size_pt,
+            press_pt: pointer,
+            last_pt: pointer,
+        });
         self.record.picks.push(json!({
             "vertex": v,
             "at_m": [anchor_m.x, anchor_m.y, anchor_m.z],
@@ -249,7 +273,8 @@ impl EditTool {
         let mut listed = edit.to_json();
         // The pointer's move and the metres per point at the handle's depth.
         let drag_pt = d.last_pt - d.press_pt;
-        let m_per_pt = unproject_delta(d.view_proj, d.size_pt, d.anchor_m, Vec2::X).map(|v| v.length());
+        let m_per_pt =
+            unproject_delta(d.view_proj, d.size_pt, d.anchor_m, Vec2::X).map(|v| v.length());
         if let Some(o) = listed.as_object_mut() {
             o.insert("drag_pt".into(), json!([drag_pt.x, drag_pt.y]));
             o.insert("m_per_pt".into(), json!(m_per_pt));
@@ -295,8 +320,14 @@ impl EditTool {
             .fit_values
             .iter()
             .map(|m| {
-                let d = changes.iter().find(|(k, _)| *k == m.name).map_or(0.0, |c| c.1);
-                MeasurementValue { value_mm: m.value_mm + d, ..m.clone() }
+                let d = changes
+                    .iter()
+                    .find(|(k, _)| *k == m.name)
+                    .map_or(0.0, |c| c.1);
+                MeasurementValue {
+                    value_mm: m.value_mm + d,
+                    ..m.clone()
+                }
             })
             .collect();
         Some((values, changes))
@@ -304,7 +335,10 @@ impl EditTool {
 
     /// The frozen fit's measurements (what an export starts from while frozen).
     pub fn fit_values(&self) -> Option<&[MeasurementValue]> {
-        self.session.as_ref().filter(|_| self.frozen()).map(|s| &s.fit_values[..])
+        self.session
+            .as_ref()
+            .filter(|_| self.frozen())
+            .map(|s| &s.fit_values[..])
     }
 
     /// What the edits did, for `--ui-edits-out`: picks, edits (vertex, offset, changes),
@@ -331,7 +365,9 @@ impl EditTool {
         let mut log = Vec::new();
         ui.checkbox(&mut self.on, "Edit avatar");
         if !self.on && !self.frozen() {
-            ui.label(RichText::new("Drag a point of the avatar to correct the fit by hand.").small());
+            ui.label(
+                RichText::new("Drag a point of the avatar to correct the fit by hand.").small(),
+            );
             return log;
         }
         let n = self.session.as_ref().map_or(0, |s| s.editor.edits().len());
@@ -354,7 +390,10 @@ impl EditTool {
             if ui.add_enabled(n > 0, egui::Button::new("Undo")).clicked() {
                 log.extend(self.undo());
             }
-            if ui.add_enabled(n > 0, egui::Button::new("Discard edits")).clicked() {
+            if ui
+                .add_enabled(n > 0, egui::Button::new("Discard edits"))
+                .clicked()
+            {
                 self.discard();
                 log.push("hand edits discarded: the live avatar is back".into());
             }
@@ -381,7 +420,11 @@ impl StationApp {
         use egui::PointerButton::Primary;
         let (origin, latest) = ui.input(|i| (i.pointer.press_origin(), i.pointer.latest_pos()));
         if resp.drag_started_by(Primary) {
-            let fits = self.current.as_ref().map(|s| s.measurements.clone()).unwrap_or_default();
+            let fits = self
+                .current
+                .as_ref()
+                .map(|s| s.measurements.clone())
+                .unwrap_or_default();
             let shown = self.shown_avatar.clone();
             match origin.map(|p| self.edit.press(shown, &fits, &self.orbit, rect, p)) {
                 Some(Ok(Some(v))) => self.log(format!("edit: picked vertex {v}")),
@@ -413,8 +456,15 @@ impl StationApp {
 
     /// The avatar to draw while edits hold it: the edited one (uploaded as a new avatar
     /// when it changed).
-    pub(super) fn show_edited(&mut self, mesh: Arc<crate::mesh::TriMesh>) -> Option<Arc<crate::mesh::TriMesh>> {
-        if !self.shown_avatar.as_ref().is_some_and(|m| Arc::ptr_eq(m, &mesh)) {
+    pub(super) fn show_edited(
+        &mut self,
+        mesh: Arc<crate::mesh::TriMesh>,
+    ) -> Option<Arc<crate::mesh::TriMesh>> {
+        if !self
+            .shown_avatar
+            .as_ref()
+            .is_some_and(|m| Arc::ptr_eq(m, &mesh))
+        {
             self.shown_avatar = Some(mesh);
             self.avatar_generation += 1;
         }
@@ -438,12 +488,37 @@ mod tests {
         let t = OrbitCamera::default().target;
         let target = DVec3::new(t.x as f64, t.y as f64, t.z as f64);
         // Behind first in the list, in front second; both on the line of sight.
-        let positions = vec![target - DVec3::Z * 0.1, target + DVec3::Z * 0.1, target + DVec3::X];
+        let positions = vec![
+            target - DVec3::Z * 0.1,
+            target + DVec3::Z * 0.1,
+            target + DVec3::X,
+        ];
         let centre = size * 0.5;
-        assert_eq!(pick_vertex(&positions, vp, size, centre, PICK_RADIUS_PT), Some(1));
+        assert_eq!(
+            pick_vertex(&positions, vp, size, centre, PICK_RADIUS_PT),
+            Some(1)
+        );
         // A few points off still picks it; far off picks nothing.
-        assert_eq!(pick_vertex(&positions, vp, size, centre + Vec2::new(5.0, 0.0), PICK_RADIUS_PT), Some(1));
-        assert_eq!(pick_vertex(&positions, vp, size, centre + Vec2::new(0.0, 40.0), PICK_RADIUS_PT), None);
+        assert_eq!(
+            pick_vertex(
+                &positions,
+                vp,
+                size,
+                centre + Vec2::new(5.0, 0.0),
+                PICK_RADIUS_PT
+            ),
+            Some(1)
+        );
+        assert_eq!(
+            pick_vertex(
+                &positions,
+                vp,
+                size,
+                centre + Vec2::new(0.0, 40.0),
+                PICK_RADIUS_PT
+            ),
+            None
+        );
     }
 
     #[test]
@@ -453,7 +528,9 @@ mod tests {
         let t = orbit.target;
         let anchor = DVec3::new(t.x as f64, t.y as f64, t.z as f64);
         // At the target the view's height spans 2 d tan(fov / 2) metres.
-        let m_per_pt = 2.0 * orbit.distance_m as f64 * (f64::from(super::super::orbit::FOV_Y_RAD) * 0.5).tan() / 600.0;
+        let m_per_pt =
+            2.0 * orbit.distance_m as f64 * (f64::from(super::super::orbit::FOV_Y_RAD) * 0.5).tan()
+                / 600.0;
         let d = unproject_delta(vp, size, anchor, Vec2::new(30.0, -20.0)).expect("delta");
         // The default camera looks from +Z, slightly from above: right is +X, up is
         // about +Y, and the move stays at the anchor's depth.
@@ -462,7 +539,10 @@ mod tests {
         let eye = orbit.eye();
         let eye = DVec3::new(eye.x as f64, eye.y as f64, eye.z as f64);
         let view_dir = (anchor - eye).normalize();
-        assert!(d.dot(view_dir).abs() < 1e-6, "the move leaves the plane facing the eye");
+        assert!(
+            d.dot(view_dir).abs() < 1e-6,
+            "the move leaves the plane facing the eye"
+        );
         // It lands where the pointer is.
         let (at0, _) = project(&vp.as_dmat4(), size, anchor).expect("seen");
         let (at1, _) = project(&vp.as_dmat4(), size, anchor + d).expect("seen");

@@ -87,7 +87,10 @@ pub fn measurements_json(m: &[MeasurementValue]) -> serde_json::Value {
 pub fn measurements_csv(m: &[MeasurementValue], hand_edits_mm: &[(String, f64)]) -> String {
     let mut s = String::from("name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm\n");
     for v in m {
-        let edit = hand_edits_mm.iter().find(|(k, _)| *k == v.name).map(|e| e.1);
+        let edit = hand_edits_mm
+            .iter()
+            .find(|(k, _)| *k == v.name)
+            .map(|e| e.1);
         // Names are report keys (no commas); quote defensively anyway.
         let name = if v.name.contains([',', '"']) {
             format!("\"{}\"", v.name.replace('"', "\"\""))
@@ -175,7 +178,10 @@ mod tests {
         assert_eq!(j["uncertain"], serde_json::json!(["odd,name"]));
         let csv = measurements_csv(&values(), &[("chest_girth".into(), 12.34)]);
         let lines: Vec<&str> = csv.lines().collect();
-        assert_eq!(lines[0], "name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm");
+        assert_eq!(
+            lines[0],
+            "name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm"
+        );
         assert_eq!(lines[1], "chest_girth,1013.4,0.3,9.0,12.3");
         assert_eq!(lines[2], "\"odd,name\",5.0,0.0,,");
     }

@@ -2,7 +2,8 @@
 //! silhouette contour, contour parts, landmarks and skeleton drawn over them; the avatar
 //! in 3-D; the measurements with their stability; per-stage timings and frame rates; the
 //! shopper's kiosk flow ([`flow`]) and the operator's tools (calibration hook,
-//! recording, replay controls, exports).
+//! recording, replay controls, exports, hand edits of the avatar ([`edit_tool`]): a
+//! primary-button drag on the avatar moves the surface and the measurements follow).
 //!
 //! Entry point: [`run`] with any [`FrameSource`] and [`FrameProcessor`]; `fitstation
 //! demo-ui` runs it on the synthetic [`demo`] station. Threads: see [`runner`]. The
@@ -408,7 +409,8 @@ impl StationApp {
             last_fault: None,
             last_snapshot_s: 0.0,
             edit: edit_tool::EditTool::default(),
-            script: (!opts.ui_script.is_empty()).then(|| ui_script::ScriptPlayer::new(opts.ui_script)),
+            script: (!opts.ui_script.is_empty())
+                .then(|| ui_script::ScriptPlayer::new(opts.ui_script)),
             edits_out: opts.edits_out,
         })
     }

@@ -171,7 +171,11 @@ impl StationApp {
                         match edited.iter().find(|(k, _)| *k == m.name) {
                             Some((_, d)) => {
                                 fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| {
-                                    ui.label(RichText::new(format!("edited by hand {d:+.1}")).small().color(EDITED_COLOUR));
+                                    ui.label(
+                                        RichText::new(format!("edited by hand {d:+.1}"))
+                                            .small()
+                                            .color(EDITED_COLOUR),
+                                    );
                                 });
                             }
                             None => stability_indicator(ui, m.stability_mm),

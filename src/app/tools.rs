@@ -116,7 +116,11 @@ impl StationApp {
     pub(super) fn export_measurements(&mut self) {
         let m = match self.edit.fit_values() {
             Some(fit) => fit.to_vec(),
-            None => self.current.as_ref().map(|s| s.measurements.clone()).unwrap_or_default(),
+            None => self
+                .current
+                .as_ref()
+                .map(|s| s.measurements.clone())
+                .unwrap_or_default(),
         };
         let r = export::export_measurements(Path::new(&self.export_dir), &m, self.edit.editor());
         self.log(match r {

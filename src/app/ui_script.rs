@@ -41,13 +41,21 @@ pub enum ScriptAction {
     EditOff,
     /// Primary button down / pointer moved / primary button up, at a point of the
     /// avatar view (fractions of its width and height from its top-left corner).
-    Press { at: [f32; 2] },
-    Move { at: [f32; 2] },
-    Release { at: [f32; 2] },
+    Press {
+        at: [f32; 2],
+    },
+    Move {
+        at: [f32; 2],
+    },
+    Release {
+        at: [f32; 2],
+    },
     /// Takes the last hand edit back.
     Undo,
     /// Exports the measurements into this folder, as the operator's button does.
-    Export { dir: String },
+    Export {
+        dir: String,
+    },
     /// Writes `--ui-edits-out` and closes the window.
     Exit,
 }
@@ -124,7 +132,10 @@ impl super::StationApp {
     /// screen's state; keeps the screen painting until the script is finished.
     pub(super) fn play_script(&mut self, ctx: &egui::Context, raw: &mut egui::RawInput) {
         let ready = self.avatar_on_screen
-            && self.current.as_ref().is_some_and(|s| !s.measurements.is_empty());
+            && self
+                .current
+                .as_ref()
+                .is_some_and(|s| !s.measurements.is_empty());
         let Some(player) = self.script.as_mut() else {
             return;
         };
@@ -149,7 +160,9 @@ impl super::StationApp {
             ScriptAction::AwaitAvatar => {}
             ScriptAction::EditOn => self.edit.on = true,
             ScriptAction::EditOff => self.edit.on = false,
-            ScriptAction::Press { at: a } | ScriptAction::Move { at: a } | ScriptAction::Release { at: a } => {
+            ScriptAction::Press { at: a }
+            | ScriptAction::Move { at: a }
+            | ScriptAction::Release { at: a } => {
                 let Some(pos) = at(a) else {
                     eprintln!("ui script: no avatar view to point at yet");
                     return;

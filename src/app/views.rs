@@ -104,7 +104,11 @@ impl StationApp {
         }
         let turning = resp.dragged() && !(editing && resp.dragged_by(egui::PointerButton::Primary));
         if turning || resp.hovered() {
-            let d = if turning { resp.drag_delta() } else { Vec2::ZERO };
+            let d = if turning {
+                resp.drag_delta()
+            } else {
+                Vec2::ZERO
+            };
             let scroll = if resp.hovered() {
                 ui.input(|i| i.smooth_scroll_delta.y)
             } else {
