@@ -1,9 +1,10 @@
 //! A hand edit made on the station screen (issue 23 item 2): `fitstation replay --ui
 //! --operator` under Xvfb plays a script of input (hidden `--ui-script`): once the demo's
-//! avatar is fitted, "Edit avatar" goes on, the primary button is pressed on the avatar's
-//! torso, dragged some points and released (egui pointer events through the real input
-//! path), the measurements are exported, the edit is undone and the window closes,
-//! writing what the edits did (`--ui-edits-out`). The test checks one edit, a handle
+//! avatar is fitted, "Edit avatar" is clicked on, the primary button is pressed on the
+//! avatar's torso, dragged some points and released, the measurements are exported,
+//! Undo and Done are clicked and the window closes, writing what the edits did
+//! (`--ui-edits-out`). Clicks, press, moves and release are egui pointer events given to
+//! the real input path (`App::raw_input_hook`). The test checks one edit, a handle
 //! moved by the dragged distance, a girth changed, an export marked with the edit, and
 //! an undo that gives back the fitted mesh exactly.
 //!
@@ -33,7 +34,7 @@ const STEPS: usize = 4;
 fn script(export_dir: &Path) -> Value {
     let mut steps = vec![
         serde_json::json!({"action": "await_avatar"}),
-        serde_json::json!({"wait": 3, "action": "edit_on"}),
+        serde_json::json!({"wait": 3, "action": "click", "target": "edit_avatar"}),
         serde_json::json!({"wait": 3, "action": "press", "at": PRESS}),
     ];
     for k in 1..STEPS {
@@ -43,7 +44,8 @@ fn script(export_dir: &Path) -> Value {
     let end = [PRESS[0] + STEPS as f32 * STEP, PRESS[1]];
     steps.push(serde_json::json!({"wait": 2, "action": "release", "at": end}));
     steps.push(serde_json::json!({"wait": 3, "action": "export", "dir": export_dir}));
-    steps.push(serde_json::json!({"wait": 3, "action": "undo"}));
+    steps.push(serde_json::json!({"wait": 3, "action": "click", "target": "undo"}));
+    steps.push(serde_json::json!({"wait": 3, "action": "click", "target": "done"}));
     steps.push(serde_json::json!({"wait": 3, "action": "exit"}));
     Value::Array(steps)
 }
@@ -161,6 +163,11 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
     assert_eq!(undos.len(), 1, "{rec}");
     assert_eq!(undos[0]["mesh_equals_fit"], Value::Bool(true), "{rec}");
     assert_eq!(rec["edits_now"], serde_json::json!(0));
+    assert_eq!(
+        rec["edit_mode_on"],
+        Value::Bool(false),
+        "Done ends edit mode"
+    );
     println!(
         "edit: {moved_mm} mm, changes {changes:?}; drag steps {} at a median {} ms",
         rec["drag_steps"], rec["drag_step_ms_median"]

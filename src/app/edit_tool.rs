@@ -127,6 +127,16 @@ pub(super) struct EditTool {
     /// Duration of each drag step (move, measure, copy for the screen), milliseconds.
     step_ms: Vec<f64>,
     record: EditRecord,
+    /// Where the section's buttons were drawn last (screen points), for scripted clicks.
+    pub buttons: EditButtons,
+}
+
+/// Where the edit section's buttons are on screen (points); `None`: not drawn.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct EditButtons {
+    pub toggle: Option<Rect>,
+    pub undo: Option<Rect>,
+    pub done: Option<Rect>,
 }
 
 impl Default for EditTool {
@@ -138,6 +148,7 @@ impl Default for EditTool {
             drag: None,
             step_ms: Vec::new(),
             record: EditRecord::default(),
+            buttons: EditButtons::default(),
         }
     }
 }
@@ -353,6 +364,7 @@ impl EditTool {
             "undos": self.record.undos,
             "errors": self.record.errors,
             "edits_now": self.session.as_ref().map_or(0, |s| s.editor.edits().len()),
+            "edit_mode_on": self.on,
             "drag_steps": ms.len(),
             "drag_step_ms_median": median,
             "drag_step_ms_max": ms.last(),
@@ -363,7 +375,10 @@ impl EditTool {
     /// Undo, Discard and Done. Returns lines for the operator's log.
     pub fn section_ui(&mut self, ui: &mut egui::Ui) -> Vec<String> {
         let mut log = Vec::new();
-        ui.checkbox(&mut self.on, "Edit avatar");
+        self.buttons = EditButtons {
+            toggle: Some(ui.checkbox(&mut self.on, "Edit avatar").rect),
+            ..EditButtons::default()
+        };
         if !self.on && !self.frozen() {
             ui.label(
                 RichText::new("Drag a point of the avatar to correct the fit by hand.").small(),
@@ -387,7 +402,9 @@ impl EditTool {
             }
         }
         ui.horizontal(|ui| {
-            if ui.add_enabled(n > 0, egui::Button::new("Undo")).clicked() {
+            let undo = ui.add_enabled(n > 0, egui::Button::new("Undo"));
+            self.buttons.undo = Some(undo.rect);
+            if undo.clicked() {
                 log.extend(self.undo());
             }
             if ui
@@ -397,8 +414,12 @@ impl EditTool {
                 self.discard();
                 log.push("hand edits discarded: the live avatar is back".into());
             }
-            if self.on && ui.button("Done").clicked() {
-                self.on = false;
+            if self.on {
+                let done = ui.button("Done");
+                self.buttons.done = Some(done.rect);
+                if done.clicked() {
+                    self.on = false;
+                }
             }
         });
         log

@@ -13,9 +13,10 @@
 //!
 //! Pointer actions are given relative to the avatar view's rectangle (0..1 from its
 //! top-left corner) and reach the screen as egui pointer events through
-//! `eframe::App::raw_input_hook`, so they take the real input path; `edit_on`,
-//! `edit_off`, `undo`, `export` (`"dir": ...`) and `exit` act on the screen's state
-//! directly.
+//! `eframe::App::raw_input_hook`, so they take the real input path, as do clicks on the
+//! edit section's buttons (`{"action": "click", "target": "edit_avatar" | "undo" |
+//! "done"}`); `edit_on`, `edit_off`, `undo`, `export` (`"dir": ...`) and `exit` act on
+//! the screen's state directly.
 
 use serde::Deserialize;
 use std::path::Path;
@@ -52,12 +53,27 @@ pub enum ScriptAction {
     },
     /// Takes the last hand edit back.
     Undo,
+    /// Clicks a button of Operator > Edit avatar with the primary button (pressed in
+    /// this frame, released in the next).
+    Click {
+        target: ClickTarget,
+    },
     /// Exports the measurements into this folder, as the operator's button does.
     Export {
         dir: String,
     },
     /// Writes `--ui-edits-out` and closes the window.
     Exit,
+}
+
+/// The buttons a script can click.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClickTarget {
+    /// The "Edit avatar" toggle.
+    EditAvatar,
+    Undo,
+    Done,
 }
 
 /// Why a script could not be read.
@@ -94,6 +110,8 @@ pub struct ScriptPlayer {
     steps: Vec<ScriptStep>,
     next: usize,
     waited: u64,
+    /// A click's release, due in the next frame.
+    release_at: Option<egui::Pos2>,
 }
 
 impl ScriptPlayer {
@@ -102,12 +120,13 @@ impl ScriptPlayer {
             steps,
             next: 0,
             waited: 0,
+            release_at: None,
         }
     }
 
     /// Every step has been played.
     pub fn finished(&self) -> bool {
-        self.next >= self.steps.len()
+        self.next >= self.steps.len() && self.release_at.is_none()
     }
 
     /// Called once per screen frame: the action due in this frame, if any
@@ -139,6 +158,17 @@ impl super::StationApp {
         let Some(player) = self.script.as_mut() else {
             return;
         };
+        let button = |pos, pressed| egui::Event::PointerButton {
+            pos,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        };
+        if let Some(pos) = player.release_at.take() {
+            raw.events.push(button(pos, false));
+            ctx.request_repaint();
+            return;
+        }
         let action = player.due(ready);
         if !player.finished() {
             ctx.request_repaint();
@@ -149,12 +179,6 @@ impl super::StationApp {
         let rect = self.layout.avatar;
         let at = |a: [f32; 2]| {
             rect.map(|r| r.min + egui::Vec2::new(a[0] * r.width(), a[1] * r.height()))
-        };
-        let button = |pos, pressed| egui::Event::PointerButton {
-            pos,
-            button: egui::PointerButton::Primary,
-            pressed,
-            modifiers: egui::Modifiers::NONE,
         };
         match action {
             ScriptAction::AwaitAvatar => {}
@@ -172,6 +196,23 @@ impl super::StationApp {
                     ScriptAction::Press { .. } => raw.events.push(button(pos, true)),
                     ScriptAction::Release { .. } => raw.events.push(button(pos, false)),
                     _ => {}
+                }
+            }
+            ScriptAction::Click { target } => {
+                let b = self.edit.buttons;
+                let rect = match target {
+                    ClickTarget::EditAvatar => b.toggle,
+                    ClickTarget::Undo => b.undo,
+                    ClickTarget::Done => b.done,
+                };
+                let Some(pos) = rect.map(|r| r.center()) else {
+                    eprintln!("ui script: the {target:?} button is not on screen");
+                    return;
+                };
+                raw.events.push(egui::Event::PointerMoved(pos));
+                raw.events.push(button(pos, true));
+                if let Some(p) = self.script.as_mut() {
+                    p.release_at = Some(pos);
                 }
             }
             ScriptAction::Undo => {
