@@ -106,6 +106,8 @@ struct ScreenDrag {
     press_pt: Pos2,
     /// The pointer's position when the handle was last moved.
     last_pt: Pos2,
+    /// A move of this drag was refused (said once per drag, not every frame).
+    refused: bool,
 }
 
 /// What the screen's edits did, for `--ui-edits-out` (the window test reads it).
@@ -245,6 +247,7 @@ impl EditTool {
             size_pt,
             press_pt: pointer,
             last_pt: pointer,
+            refused: false,
         });
         self.record.picks.push(json!({
             "vertex": v,
@@ -257,7 +260,8 @@ impl EditTool {
     /// Moves the handle under way to where the pointer (screen points) now is.
     ///
     /// # Errors
-    /// The editor refused the move (too far, not measurable): the handle stays.
+    /// The editor refused the move (too far, not measurable): the handle stays. Said
+    /// once per drag.
     pub fn drag_to(&mut self, pointer: Pos2) -> Result<(), String> {
         let (Some(d), Some(s)) = (self.drag.as_mut(), self.session.as_mut()) else {
             return Ok(());
@@ -266,9 +270,14 @@ impl EditTool {
             return Ok(());
         }
         let t0 = Instant::now();
-        let offset = unproject_delta(d.view_proj, d.size_pt, d.anchor_m, pointer - d.press_pt)
-            .ok_or("the pointer cannot be unprojected")?;
-        s.editor.drag_to(offset).map_err(|e| e.to_string())?;
+        let moved = unproject_delta(d.view_proj, d.size_pt, d.anchor_m, pointer - d.press_pt)
+            .ok_or_else(|| "the pointer cannot be unprojected".to_string())
+            .and_then(|offset| s.editor.drag_to(offset).map_err(|e| e.to_string()));
+        if let Err(e) = moved {
+            let first = !d.refused;
+            d.refused = true;
+            return if first { Err(e) } else { Ok(()) };
+        }
         d.last_pt = pointer;
         s.shown = Arc::new(s.editor.mesh().clone());
         self.step_ms.push(t0.elapsed().as_secs_f64() * 1e3);
@@ -543,6 +552,29 @@ mod tests {
     }
 
     #[test]
+    fn on_a_closed_surface_the_side_facing_the_eye_is_picked() {
+        let (vp, size) = camera();
+        let t = OrbitCamera::default().target;
+        let mut sphere = crate::mesh::shapes::uv_sphere(0.3, 24, 32);
+        for p in &mut sphere.positions {
+            *p += DVec3::new(t.x as f64, t.y as f64, t.z as f64);
+        }
+        let eye = OrbitCamera::default().eye();
+        let eye = DVec3::new(eye.x as f64, eye.y as f64, eye.z as f64);
+        for pointer in [size * 0.5, size * 0.5 + Vec2::new(20.0, -30.0)] {
+            let v = pick_vertex(&sphere.positions, vp, size, pointer, PICK_RADIUS_PT)
+                .expect("a vertex under the pointer");
+            let p = sphere.positions[v as usize];
+            // Seen: its outward normal points toward the eye.
+            let normal = p - DVec3::new(t.x as f64, t.y as f64, t.z as f64);
+            assert!(
+                normal.dot(eye - p) > 0.0,
+                "picked a hidden vertex {v} at {p:?}"
+            );
+        }
+    }
+
+    #[test]
     fn a_pixel_delta_unprojects_to_metres_at_the_vertex_depth() {
         let (vp, size) = camera();
         let orbit = OrbitCamera::default();
@@ -564,9 +596,24 @@ mod tests {
             d.dot(view_dir).abs() < 1e-6,
             "the move leaves the plane facing the eye"
         );
-        // It lands where the pointer is.
-        let (at0, _) = project(&vp.as_dmat4(), size, anchor).expect("seen");
-        let (at1, _) = project(&vp.as_dmat4(), size, anchor + d).expect("seen");
-        assert!(((at1 - at0) - Vec2::new(30.0, -20.0)).length() < 1e-3);
+        // From any side, the moved point lands where the pointer is, at the same depth.
+        for preset in [
+            ViewPreset::Front,
+            ViewPreset::Side,
+            ViewPreset::ThreeQuarter,
+        ] {
+            let mut orbit = OrbitCamera::default();
+            orbit.preset(preset);
+            let vp = orbit.view_proj(size.x / size.y);
+            let off = anchor + DVec3::new(0.05, 0.2, -0.03);
+            let d = unproject_delta(vp, size, off, Vec2::new(30.0, -20.0)).expect("delta");
+            let (at0, w0) = project(&vp.as_dmat4(), size, off).expect("seen");
+            let (at1, w1) = project(&vp.as_dmat4(), size, off + d).expect("seen");
+            assert!(
+                ((at1 - at0) - Vec2::new(30.0, -20.0)).length() < 1e-3,
+                "{preset:?}"
+            );
+            assert!((w1 - w0).abs() < 1e-6, "{preset:?}: depth {w0} -> {w1}");
+        }
     }
 }
