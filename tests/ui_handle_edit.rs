@@ -30,6 +30,10 @@ const PRESS: [f32; 2] = [0.5, 0.45];
 /// Drag steps to the right (fractions of the view's width).
 const STEP: f32 = 0.01;
 const STEPS: usize = 4;
+/// Each of the two orbit drags (fractions of the view's width, to the right).
+const ORBIT_DRAG: f32 = 0.1;
+/// Radians of orbit per point of drag (`app::orbit`).
+const ORBIT_RAD_PER_POINT: f64 = 0.01;
 
 fn script(export_dir: &Path) -> Value {
     let mut steps = vec![
@@ -45,7 +49,16 @@ fn script(export_dir: &Path) -> Value {
     steps.push(serde_json::json!({"wait": 2, "action": "release", "at": end}));
     steps.push(serde_json::json!({"wait": 3, "action": "export", "dir": export_dir}));
     steps.push(serde_json::json!({"wait": 3, "action": "click", "target": "undo"}));
-    steps.push(serde_json::json!({"wait": 3, "action": "click", "target": "done"}));
+    // The secondary button turns the view while editing; after Done, the primary does.
+    for button in ["secondary", "primary"] {
+        let (a, b) = ([0.3, 0.6], [0.3 + ORBIT_DRAG, 0.6]);
+        steps.push(serde_json::json!({"wait": 3, "action": "press", "at": a, "button": button}));
+        steps.push(serde_json::json!({"wait": 2, "action": "move", "at": b}));
+        steps.push(serde_json::json!({"wait": 2, "action": "release", "at": b, "button": button}));
+        if button == "secondary" {
+            steps.push(serde_json::json!({"wait": 3, "action": "click", "target": "done"}));
+        }
+    }
     steps.push(serde_json::json!({"wait": 3, "action": "exit"}));
     Value::Array(steps)
 }
@@ -167,6 +180,17 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         rec["edit_mode_on"],
         Value::Bool(false),
         "Done ends edit mode"
+    );
+
+    // The two orbit drags turned the view and picked nothing.
+    assert_eq!(rec["picks"].as_array().map(Vec::len), Some(1), "{rec}");
+    let view = rec["avatar_view_pt"].as_array().expect("avatar view");
+    let width = view[2].as_f64().unwrap_or(0.0) - view[0].as_f64().unwrap_or(0.0);
+    let expected_yaw = -2.0 * f64::from(ORBIT_DRAG) * width * ORBIT_RAD_PER_POINT;
+    let yaw = rec["orbit_yaw_rad"].as_f64().expect("yaw");
+    assert!(
+        (yaw - expected_yaw).abs() < 0.02 * expected_yaw.abs(),
+        "the view turned {yaw} rad, expected {expected_yaw} from two drags"
     );
     println!(
         "edit: {moved_mm} mm, changes {changes:?}; drag steps {} at a median {} ms",

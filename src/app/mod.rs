@@ -558,7 +558,17 @@ impl StationApp {
         let Some(path) = &self.edits_out else {
             return;
         };
-        let text = serde_json::to_string_pretty(&self.edit.record_json()).unwrap_or_default();
+        let mut record = self.edit.record_json();
+        if let Some(o) = record.as_object_mut() {
+            // The avatar view's turn, so that a test can tell an orbit from an edit.
+            o.insert("orbit_yaw_rad".into(), serde_json::json!(self.orbit.yaw));
+            let view = self
+                .layout
+                .avatar
+                .map(|r| [r.min.x, r.min.y, r.max.x, r.max.y]);
+            o.insert("avatar_view_pt".into(), serde_json::json!(view));
+        }
+        let text = serde_json::to_string_pretty(&record).unwrap_or_default();
         if let Err(e) = crate::io::atomic::write(path, text) {
             eprintln!("cannot write {}: {e}", path.display());
         }

@@ -40,16 +40,21 @@ pub enum ScriptAction {
     /// Turns "Edit avatar" on / off ("Done").
     EditOn,
     EditOff,
-    /// Primary button down / pointer moved / primary button up, at a point of the
-    /// avatar view (fractions of its width and height from its top-left corner).
+    /// Button down / pointer moved / button up, at a point of the avatar view
+    /// (fractions of its width and height from its top-left corner); the primary button
+    /// unless `"button": "secondary"`.
     Press {
         at: [f32; 2],
+        #[serde(default)]
+        button: Button,
     },
     Move {
         at: [f32; 2],
     },
     Release {
         at: [f32; 2],
+        #[serde(default)]
+        button: Button,
     },
     /// Takes the last hand edit back.
     Undo,
@@ -64,6 +69,24 @@ pub enum ScriptAction {
     },
     /// Writes `--ui-edits-out` and closes the window.
     Exit,
+}
+
+/// A pointer button.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Button {
+    #[default]
+    Primary,
+    Secondary,
+}
+
+impl From<Button> for egui::PointerButton {
+    fn from(b: Button) -> Self {
+        match b {
+            Button::Primary => egui::PointerButton::Primary,
+            Button::Secondary => egui::PointerButton::Secondary,
+        }
+    }
 }
 
 /// The buttons a script can click.
@@ -110,8 +133,10 @@ pub struct ScriptPlayer {
     steps: Vec<ScriptStep>,
     next: usize,
     waited: u64,
-    /// A click's release, due in the next frame.
-    release_at: Option<egui::Pos2>,
+    /// Events due in the next frames, one a frame: a button goes down a frame after the
+    /// pointer came (a pointer that jumps and presses in one frame would count the jump
+    /// as a drag), and a click's release a frame after its press.
+    queued: std::collections::VecDeque<egui::Event>,
 }
 
 impl ScriptPlayer {
@@ -120,13 +145,13 @@ impl ScriptPlayer {
             steps,
             next: 0,
             waited: 0,
-            release_at: None,
+            queued: std::collections::VecDeque::new(),
         }
     }
 
     /// Every step has been played.
     pub fn finished(&self) -> bool {
-        self.next >= self.steps.len() && self.release_at.is_none()
+        self.next >= self.steps.len() && self.queued.is_empty()
     }
 
     /// Called once per screen frame: the action due in this frame, if any
@@ -158,14 +183,14 @@ impl super::StationApp {
         let Some(player) = self.script.as_mut() else {
             return;
         };
-        let button = |pos, pressed| egui::Event::PointerButton {
+        let button = |pos, b: Button, pressed| egui::Event::PointerButton {
             pos,
-            button: egui::PointerButton::Primary,
+            button: b.into(),
             pressed,
             modifiers: egui::Modifiers::NONE,
         };
-        if let Some(pos) = player.release_at.take() {
-            raw.events.push(button(pos, false));
+        if let Some(event) = player.queued.pop_front() {
+            raw.events.push(event);
             ctx.request_repaint();
             return;
         }
@@ -184,17 +209,23 @@ impl super::StationApp {
             ScriptAction::AwaitAvatar => {}
             ScriptAction::EditOn => self.edit.on = true,
             ScriptAction::EditOff => self.edit.on = false,
-            ScriptAction::Press { at: a }
+            ScriptAction::Press { at: a, .. }
             | ScriptAction::Move { at: a }
-            | ScriptAction::Release { at: a } => {
+            | ScriptAction::Release { at: a, .. } => {
                 let Some(pos) = at(a) else {
                     eprintln!("ui script: no avatar view to point at yet");
                     return;
                 };
                 raw.events.push(egui::Event::PointerMoved(pos));
                 match action {
-                    ScriptAction::Press { .. } => raw.events.push(button(pos, true)),
-                    ScriptAction::Release { .. } => raw.events.push(button(pos, false)),
+                    ScriptAction::Press { button: b, .. } => {
+                        if let Some(p) = self.script.as_mut() {
+                            p.queued.push_back(button(pos, b, true));
+                        }
+                    }
+                    ScriptAction::Release { button: b, .. } => {
+                        raw.events.push(button(pos, b, false))
+                    }
                     _ => {}
                 }
             }
@@ -210,9 +241,9 @@ impl super::StationApp {
                     return;
                 };
                 raw.events.push(egui::Event::PointerMoved(pos));
-                raw.events.push(button(pos, true));
                 if let Some(p) = self.script.as_mut() {
-                    p.release_at = Some(pos);
+                    p.queued.push_back(button(pos, Button::Primary, true));
+                    p.queued.push_back(button(pos, Button::Primary, false));
                 }
             }
             ScriptAction::Undo => {
@@ -248,7 +279,13 @@ mod tests {
         assert_eq!(p.due(true), Some(ScriptAction::AwaitAvatar));
         assert_eq!(p.due(true), None);
         assert_eq!(p.due(true), None);
-        assert_eq!(p.due(true), Some(ScriptAction::Press { at: [0.5, 0.25] }));
+        assert_eq!(
+            p.due(true),
+            Some(ScriptAction::Press {
+                at: [0.5, 0.25],
+                button: Button::Primary
+            })
+        );
         assert_eq!(p.due(true), Some(ScriptAction::Exit));
         assert!(p.finished() && p.due(true).is_none());
     }
