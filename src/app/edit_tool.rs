@@ -48,17 +48,114 @@ pub fn pick_vertex(
     pointer_pt: Vec2,
     radius_pt: f32,
 ) -> Option<u32> {
+    nearest_seen(
+        positions,
+        &view_proj.as_dmat4(),
+        size_pt,
+        pointer_pt,
+        radius_pt,
+        f64::INFINITY,
+    )
+}
+
+/// Depth beyond the surface under the pointer (metres) up to which a vertex within the
+/// pick radius still counts as on that surface (it may sit on a slope beside it).
+const SURFACE_DEPTH_SLACK_M: f64 = 0.03;
+
+/// [`pick_vertex`] on a mesh, safe when the view is zoomed in so far that the surface
+/// under the pointer has no vertex within the radius: the pointer's ray is cast on the
+/// triangles, vertices deeper than the surface it hits are left out, and without one
+/// left the hit triangle's corner nearest to the hit is taken.
+pub fn pick_on_mesh(
+    mesh: &crate::mesh::TriMesh,
+    view_proj: Mat4,
+    size_pt: Vec2,
+    pointer_pt: Vec2,
+    radius_pt: f32,
+) -> Option<u32> {
     let vp = view_proj.as_dmat4();
+    let Some((tri, hit)) = ray_hit(mesh, &vp, size_pt, pointer_pt) else {
+        return pick_vertex(&mesh.positions, view_proj, size_pt, pointer_pt, radius_pt);
+    };
+    let max_depth = (vp * hit.extend(1.0)).w + SURFACE_DEPTH_SLACK_M;
+    nearest_seen(
+        &mesh.positions,
+        &vp,
+        size_pt,
+        pointer_pt,
+        radius_pt,
+        max_depth,
+    )
+    .or_else(|| {
+        tri.iter().copied().min_by(|a, b| {
+            let d = |v: u32| mesh.positions[v as usize].distance_squared(hit);
+            d(*a).total_cmp(&d(*b))
+        })
+    })
+}
+
+/// Among the vertices seen within `radius_pt` of the pointer and no deeper than
+/// `max_depth` (clip w, metres), the one nearest to the eye.
+fn nearest_seen(
+    positions: &[DVec3],
+    vp: &DMat4,
+    size_pt: Vec2,
+    pointer_pt: Vec2,
+    radius_pt: f32,
+    max_depth: f64,
+) -> Option<u32> {
     let r2 = radius_pt * radius_pt;
     positions
         .iter()
         .enumerate()
         .filter_map(|(i, p)| {
-            let (at, depth) = project(&vp, size_pt, *p)?;
-            ((at - pointer_pt).length_sq() <= r2).then_some((i as u32, depth))
+            let (at, depth) = project(vp, size_pt, *p)?;
+            ((at - pointer_pt).length_sq() <= r2 && depth <= max_depth).then_some((i as u32, depth))
         })
         .min_by(|a, b| a.1.total_cmp(&b.1))
         .map(|(i, _)| i)
+}
+
+/// The first triangle the pointer's ray meets and where (Moller-Trumbore, both faces).
+fn ray_hit(
+    mesh: &crate::mesh::TriMesh,
+    vp: &DMat4,
+    size_pt: Vec2,
+    pointer_pt: Vec2,
+) -> Option<([u32; 3], DVec3)> {
+    let ndc_x = 2.0 * f64::from(pointer_pt.x) / f64::from(size_pt.x) - 1.0;
+    let ndc_y = 1.0 - 2.0 * f64::from(pointer_pt.y) / f64::from(size_pt.y);
+    let inv = vp.inverse();
+    let at = |z: f64| {
+        let p = inv * DVec4::new(ndc_x, ndc_y, z, 1.0);
+        p.truncate() / p.w
+    };
+    let (origin, far) = (at(0.0), at(1.0));
+    let dir = far - origin;
+    let n = mesh.positions.len();
+    let mut best: Option<(f64, [u32; 3])> = None;
+    for t in &mesh.triangles {
+        if t.iter().any(|&i| i as usize >= n) {
+            continue;
+        }
+        let [a, b, c] = t.map(|i| mesh.positions[i as usize]);
+        let (e1, e2) = (b - a, c - a);
+        let p = dir.cross(e2);
+        let det = e1.dot(p);
+        if det.abs() < 1e-18 {
+            continue;
+        }
+        let s = origin - a;
+        let u = s.dot(p) / det;
+        let q = s.cross(e1);
+        let v = dir.dot(q) / det;
+        let along = e2.dot(q) / det;
+        let inside = u >= 0.0 && v >= 0.0 && u + v <= 1.0 && along > 0.0;
+        if inside && best.is_none_or(|(b, _)| along < b) {
+            best = Some((along, *t));
+        }
+    }
+    best.map(|(along, t)| (t, origin + dir * along))
 }
 
 /// The move in the station (metres) that carries `anchor_m` by `delta_pt` points on
@@ -86,6 +183,9 @@ pub fn unproject_delta(
     let p = back.truncate() / back.w;
     p.is_finite().then(|| p - anchor_m)
 }
+
+/// Measurements as edited, and each value's change from the edits (report key, mm).
+pub(super) type EditedValues = (Vec<MeasurementValue>, Vec<(String, f64)>);
 
 /// The avatar frozen for editing and what it was frozen from.
 struct Session {
@@ -228,13 +328,7 @@ impl EditTool {
         let size_pt = rect.size();
         let view_proj = orbit.view_proj(size_pt.x / size_pt.y.max(1.0));
         let pointer_pt = pointer - rect.min;
-        let Some(v) = pick_vertex(
-            &s.shown.positions,
-            view_proj,
-            size_pt,
-            pointer_pt,
-            PICK_RADIUS_PT,
-        ) else {
+        let Some(v) = pick_on_mesh(&s.shown, view_proj, size_pt, pointer_pt, PICK_RADIUS_PT) else {
             return Ok(None);
         };
         s.editor
@@ -333,7 +427,7 @@ impl EditTool {
 
     /// While frozen: the measurements as edited (the frozen fit's values plus each
     /// value's change from the edits) and the changes themselves (report keys, mm).
-    pub fn edited_measurements(&self) -> Option<(Vec<MeasurementValue>, Vec<(String, f64)>)> {
+    pub fn edited_measurements(&self) -> Option<EditedValues> {
         let s = self.session.as_ref().filter(|_| self.frozen())?;
         let changes = s.editor.changes_mm();
         let values = s
@@ -572,6 +666,35 @@ mod tests {
                 "picked a hidden vertex {v} at {p:?}"
             );
         }
+    }
+
+    #[test]
+    fn a_large_triangle_in_front_hides_the_vertex_behind_it() {
+        let (vp, size) = camera();
+        let t = OrbitCamera::default().target;
+        let c = DVec3::new(t.x as f64, t.y as f64, t.z as f64);
+        // A quad 1 m wide in front (no corner near the pointer), a lone vertex behind.
+        let positions = vec![
+            c + DVec3::new(-0.5, -0.5, 0.2),
+            c + DVec3::new(0.5, -0.5, 0.2),
+            c + DVec3::new(0.5, 0.5, 0.2),
+            c + DVec3::new(-0.5, 0.5, 0.2),
+            c + DVec3::new(0.0, 0.0, -0.2),
+        ];
+        let mesh = crate::mesh::TriMesh::new(positions, vec![[0, 1, 2], [0, 2, 3], [4, 4, 4]]);
+        let pointer = size * 0.5 + Vec2::new(10.0, -25.0);
+        // By the pick radius alone only the hidden vertex is near the pointer ...
+        assert_eq!(
+            pick_vertex(&mesh.positions, vp, size, pointer, 40.0),
+            Some(4)
+        );
+        // ... the ray finds the quad first and takes its corner nearest to the hit.
+        assert_eq!(pick_on_mesh(&mesh, vp, size, pointer, 40.0), Some(2));
+        // Beside the quad the radius rule holds.
+        assert_eq!(
+            pick_on_mesh(&mesh, vp, size, size * 0.5 + Vec2::new(0.0, 350.0), 8.0),
+            None
+        );
     }
 
     #[test]
