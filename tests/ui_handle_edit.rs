@@ -165,6 +165,22 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         .as_array()
         .expect("edited_by_hand");
     assert!(!marked.is_empty(), "{exported}");
+    // The exported avatar is the edited one: the handle sits where the edit put it.
+    let obj = fitstation::mesh::io::read_mesh(&export_dir.join("avatar.obj")).expect("avatar.obj");
+    let v = e["vertex"].as_u64().expect("vertex") as usize;
+    let at = &e["at_m"];
+    let off = &e["offset_m"];
+    let c = |j: &Value, k: usize| j[k].as_f64().expect("coordinate");
+    let moved = glam::DVec3::new(
+        c(at, 0) + c(off, 0),
+        c(at, 1) + c(off, 1),
+        c(at, 2) + c(off, 2),
+    );
+    assert!(
+        obj.positions[v].distance(moved) < 1e-5,
+        "exported handle at {:?}, the edit put it at {moved:?}",
+        obj.positions[v]
+    );
     let csv = std::fs::read_to_string(export_dir.join("measurements.csv")).expect("csv");
     assert!(
         csv.starts_with("name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm"),

@@ -84,14 +84,7 @@ impl StationApp {
                 ui.horizontal(|ui| {
                     for f in export::AvatarFormat::ALL {
                         if ui.button(format!("Avatar .{}", f.extension())).clicked() {
-                            // The avatar as edited by hand, if it is.
-                            let edited = self.edit.editor().map(|e| e.mesh());
-                            let live = self.current.as_ref().and_then(|s| s.avatar.clone());
-                            let r = export::export_avatar(Path::new(&self.export_dir), edited.or(live.as_deref()), f);
-                            self.log(match r {
-                                Ok(p) => format!("wrote {}", p.display()),
-                                Err(e) => format!("export failed: {e}"),
-                            });
+                            self.export_avatar(f);
                         }
                     }
                 });
@@ -109,6 +102,21 @@ impl StationApp {
             for l in &self.operator_log {
                 ui.label(RichText::new(l).small());
             }
+        });
+    }
+
+    /// Writes the avatar (as edited by hand, if it is) into the export folder.
+    pub(super) fn export_avatar(&mut self, format: export::AvatarFormat) {
+        let edited = self.edit.editor().map(|e| e.mesh());
+        let live = self.current.as_ref().and_then(|s| s.avatar.clone());
+        let r = export::export_avatar(
+            Path::new(&self.export_dir),
+            edited.or(live.as_deref()),
+            format,
+        );
+        self.log(match r {
+            Ok(p) => format!("wrote {}", p.display()),
+            Err(e) => format!("export failed: {e}"),
         });
     }
 

@@ -63,7 +63,8 @@ pub enum ScriptAction {
     Click {
         target: ClickTarget,
     },
-    /// Exports the measurements into this folder, as the operator's button does.
+    /// Exports the measurements and the avatar (OBJ) into this folder, as the operator's
+    /// buttons do.
     Export {
         dir: String,
     },
@@ -254,6 +255,7 @@ impl super::StationApp {
             ScriptAction::Export { dir } => {
                 self.export_dir = dir;
                 self.export_measurements();
+                self.export_avatar(super::export::AvatarFormat::Obj);
             }
             ScriptAction::Exit => {
                 self.write_edits_out();
