@@ -472,11 +472,17 @@ impl StationApp {
     }
 
     /// Privacy: forget everything about the shopper on screen and in the processor.
+    /// Hand edits go too, unless the operator is editing (then they go with Discard
+    /// edits or Reset shopper).
     fn clear_subject(&mut self) {
-        if self.edit.frozen() {
-            self.log("the shopper was cleared: hand edits discarded".into());
+        if self.edit.frozen() && self.edit.on {
+            self.log("the shopper was cleared: hand edits kept while editing".into());
+        } else {
+            if self.edit.frozen() {
+                self.log("the shopper was cleared: hand edits discarded".into());
+            }
+            self.edit.discard();
         }
-        self.edit.discard();
         self.runner
             .controls
             .reset_subject

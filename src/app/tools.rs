@@ -72,6 +72,7 @@ impl StationApp {
                     if st.ended { ", ended" } else { "" }
                 ));
                 if ui.button("Reset shopper (clear data)").clicked() {
+                    self.edit.discard();
                     self.flow.reset();
                     self.clear_subject();
                 }
