@@ -308,6 +308,7 @@ impl EditTool {
         pointer: Pos2,
     ) -> Result<Option<u32>, String> {
         let shown = shown.ok_or("no avatar on screen to edit")?;
+        let t0 = Instant::now();
         let keep = self.frozen()
             || self
                 .session
@@ -347,6 +348,8 @@ impl EditTool {
             "vertex": v,
             "at_m": [anchor_m.x, anchor_m.y, anchor_m.z],
             "pointer_pt": [pointer_pt.x, pointer_pt.y],
+            // Freezing (when it did), picking and solving the handle's field.
+            "press_ms": t0.elapsed().as_secs_f64() * 1e3,
         }));
         Ok(Some(v))
     }
