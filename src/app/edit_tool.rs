@@ -316,11 +316,17 @@ impl EditTool {
                 .is_some_and(|s| Arc::ptr_eq(&s.fitted, &shown));
         if !keep {
             let editor = AvatarEditor::new((*shown).clone()).map_err(|e| e.to_string())?;
+            // Without the station's (smoothed) values, the avatar's own measurements.
+            let fit_values = if fit_values.is_empty() {
+                own_values(&editor)
+            } else {
+                fit_values.to_vec()
+            };
             self.session = Some(Session {
                 editor,
                 fitted: shown.clone(),
                 shown,
-                fit_values: fit_values.to_vec(),
+                fit_values,
             });
         }
         let Some(s) = self.session.as_mut() else {
@@ -530,6 +536,23 @@ impl EditTool {
         });
         log
     }
+}
+
+/// The fitted avatar's own measurements as the station's values (no spread, no `±`).
+fn own_values(editor: &AvatarEditor) -> Vec<MeasurementValue> {
+    let map = editor.fit_measurements().to_report_map();
+    crate::station::MEASUREMENT_KEYS
+        .iter()
+        .filter_map(|k| {
+            Some(MeasurementValue {
+                name: k.to_string(),
+                value_mm: map.get(*k)?.as_f64()?,
+                stability_mm: 0.0,
+                uncertainty_mm: f64::INFINITY,
+                uncertain: false,
+            })
+        })
+        .collect()
 }
 
 /// An edit in words: "waist: 20.0 mm, waist_girth +15.6 mm".
