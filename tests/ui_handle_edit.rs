@@ -123,11 +123,22 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
     let rec = read_json(&out);
     println!("{}", serde_json::to_string_pretty(&rec).unwrap_or_default());
     assert_eq!(rec["errors"], serde_json::json!([]), "{stderr}");
+    let e = one_edit_on_the_torso_by_the_dragged_distance(&rec);
+    export_carries_the_edit(&export_dir, &e);
+    undo_restores_and_orbits_pick_nothing(&rec);
+    println!(
+        "edit: {} mm, changes {}; drag steps {} at a median {} ms",
+        e["distance_mm"], e["changes_mm"], rec["drag_steps"], rec["drag_step_ms_median"]
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
 
-    // One edit, picked on the torso (between the thighs and the shoulders).
+/// One edit, picked on the torso, that moved the handle by the dragged distance at its
+/// depth and changed a girth; the edit.
+fn one_edit_on_the_torso_by_the_dragged_distance(rec: &Value) -> Value {
     let edits = rec["edits"].as_array().expect("edits");
     assert_eq!(edits.len(), 1, "one drag, one edit: {rec}");
-    let e = &edits[0];
+    let e = edits[0].clone();
     let picked = &rec["picks"][0];
     assert_eq!(picked["vertex"], e["vertex"]);
     let y = picked["at_m"][1].as_f64().expect("picked height");
@@ -148,12 +159,17 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         "moved {moved_mm} mm for {drag_len:.1} points at {m_per_pt:.5} m per point ({expected_mm:.1} mm)"
     );
 
-    // Some girth changed, and the export carries the edit.
     let changes = e["changes_mm"].as_object().expect("changes_mm");
     assert!(
         changes.keys().any(|k| k.contains("girth")),
         "no girth changed: {changes:?}"
     );
+    e
+}
+
+/// The measurements export is marked with the edit, and the exported avatar is the
+/// edited one.
+fn export_carries_the_edit(export_dir: &Path, e: &Value) {
     let exported = read_json(&export_dir.join("measurements.json"));
     assert_eq!(
         exported["hand_edits"].as_array().map(Vec::len),
@@ -186,8 +202,11 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         csv.starts_with("name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm"),
         "{csv}"
     );
+}
 
-    // Undo gives back the fitted mesh exactly.
+/// Undo gives back the fitted mesh exactly, Done ends edit mode, and the two orbit
+/// drags turned the view and picked nothing.
+fn undo_restores_and_orbits_pick_nothing(rec: &Value) {
     let undos = rec["undos"].as_array().expect("undos");
     assert_eq!(undos.len(), 1, "{rec}");
     assert_eq!(undos[0]["mesh_equals_fit"], Value::Bool(true), "{rec}");
@@ -198,7 +217,6 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         "Done ends edit mode"
     );
 
-    // The two orbit drags turned the view and picked nothing.
     assert_eq!(rec["picks"].as_array().map(Vec::len), Some(1), "{rec}");
     let view = rec["avatar_view_pt"].as_array().expect("avatar view");
     let width = view[2].as_f64().unwrap_or(0.0) - view[0].as_f64().unwrap_or(0.0);
@@ -208,9 +226,4 @@ fn a_drag_on_the_screen_edits_the_avatar_and_undo_restores_it() {
         (yaw - expected_yaw).abs() < 0.02 * expected_yaw.abs(),
         "the view turned {yaw} rad, expected {expected_yaw} from two drags"
     );
-    println!(
-        "edit: {moved_mm} mm, changes {changes:?}; drag steps {} at a median {} ms",
-        rec["drag_steps"], rec["drag_step_ms_median"]
-    );
-    let _ = std::fs::remove_dir_all(&dir);
 }
