@@ -210,14 +210,27 @@ struct ScreenDrag {
     refused: bool,
 }
 
-/// What the screen's edits did, for `--ui-edits-out` (the window test reads it).
+/// What the screen's edits did, for `--ui-edits-out` (the window test reads it); kept
+/// only when asked for (a kiosk runs for days).
 #[derive(Default)]
 struct EditRecord {
+    on: bool,
     picks: Vec<Value>,
     edits: Vec<Value>,
     undos: Vec<Value>,
     errors: Vec<String>,
 }
+
+impl EditRecord {
+    fn add(&mut self, list: fn(&mut EditRecord) -> &mut Vec<Value>, entry: Value) {
+        if self.on {
+            list(self).push(entry);
+        }
+    }
+}
+
+/// Drag step durations kept for the record (the newest).
+const STEP_SAMPLES: usize = 1000;
 
 /// The screen's edit state: the toggle, the reach, the frozen avatar and the drag.
 pub(super) struct EditTool {
@@ -290,6 +303,11 @@ impl EditTool {
         }
     }
 
+    /// Keeps a record of the edits for [`Self::record_json`] (window tests).
+    pub fn keep_record(&mut self) {
+        self.record.on = true;
+    }
+
     pub fn dragging(&self) -> bool {
         self.drag.is_some()
     }
@@ -350,13 +368,16 @@ impl EditTool {
             last_pt: pointer,
             refused: false,
         });
-        self.record.picks.push(json!({
-            "vertex": v,
-            "at_m": [anchor_m.x, anchor_m.y, anchor_m.z],
-            "pointer_pt": [pointer_pt.x, pointer_pt.y],
-            // Freezing (when it did), picking and solving the handle's field.
-            "press_ms": t0.elapsed().as_secs_f64() * 1e3,
-        }));
+        self.record.add(
+            |r| &mut r.picks,
+            json!({
+                "vertex": v,
+                "at_m": [anchor_m.x, anchor_m.y, anchor_m.z],
+                "pointer_pt": [pointer_pt.x, pointer_pt.y],
+                // Freezing (when it did), picking and solving the handle's field.
+                "press_ms": t0.elapsed().as_secs_f64() * 1e3,
+            }),
+        );
         Ok(Some(v))
     }
 
@@ -383,6 +404,9 @@ impl EditTool {
         }
         d.last_pt = pointer;
         s.shown = Arc::new(s.editor.mesh().clone());
+        if self.step_ms.len() >= STEP_SAMPLES {
+            self.step_ms.remove(0);
+        }
         self.step_ms.push(t0.elapsed().as_secs_f64() * 1e3);
         Ok(())
     }
@@ -402,7 +426,7 @@ impl EditTool {
             o.insert("drag_pt".into(), json!([drag_pt.x, drag_pt.y]));
             o.insert("m_per_pt".into(), json!(m_per_pt));
         }
-        self.record.edits.push(listed);
+        self.record.add(|r| &mut r.edits, listed);
         s.shown = Arc::new(s.editor.mesh().clone());
         Some(line)
     }
@@ -414,11 +438,14 @@ impl EditTool {
         let edit = s.editor.undo()?;
         let exact = s.editor.mesh().positions == s.fitted.positions;
         s.shown = Arc::new(s.editor.mesh().clone());
-        self.record.undos.push(json!({
-            "vertex": edit.vertex,
-            "edits_left": s.editor.edits().len(),
-            "mesh_equals_fit": exact,
-        }));
+        self.record.add(
+            |r| &mut r.undos,
+            json!({
+                "vertex": edit.vertex,
+                "edits_left": s.editor.edits().len(),
+                "mesh_equals_fit": exact,
+            }),
+        );
         Some(format!("undid the edit at the {}", edit.near))
     }
 
@@ -430,7 +457,9 @@ impl EditTool {
 
     /// Notes a refused press or drag (for the log and the record).
     pub fn note_error(&mut self, e: &str) -> String {
-        self.record.errors.push(e.to_string());
+        if self.record.on {
+            self.record.errors.push(e.to_string());
+        }
         format!("edit: {e}")
     }
 

@@ -408,7 +408,13 @@ impl StationApp {
             published_seen: 0,
             last_fault: None,
             last_snapshot_s: 0.0,
-            edit: edit_tool::EditTool::default(),
+            edit: {
+                let mut e = edit_tool::EditTool::default();
+                if opts.edits_out.is_some() {
+                    e.keep_record();
+                }
+                e
+            },
             script: (!opts.ui_script.is_empty())
                 .then(|| ui_script::ScriptPlayer::new(opts.ui_script)),
             edits_out: opts.edits_out,
