@@ -1,7 +1,11 @@
 //! Operator exports: the avatar (OBJ, PLY or glTF binary through `mesh::io::write_mesh`)
 //! and the measurements (JSON with `measurements_mm` as in `report.json`, or CSV with
-//! `name,value_mm,stability_mm`). Values in millimetres, avatar in metres, station frame.
+//! `name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm`). Values in millimetres,
+//! avatar in metres, station frame. Hand edits of the avatar are carried as in
+//! `report.json` (`AvatarEditor::mark_report`: `measurements_mm` edited,
+//! `measurements_fit_mm`, `edited_by_hand`, `hand_edits`) and in the CSV's last column.
 
+use crate::edit::AvatarEditor;
 use crate::mesh::io::{write_mesh, MeshIoError};
 use crate::mesh::TriMesh;
 use crate::pipeline::MeasurementValue;
@@ -78,10 +82,15 @@ pub fn measurements_json(m: &[MeasurementValue]) -> serde_json::Value {
         "uncertainty_mm": uncertainty, "uncertain": uncertain })
 }
 
-/// Measurements as CSV with a header line.
-pub fn measurements_csv(m: &[MeasurementValue]) -> String {
-    let mut s = String::from("name,value_mm,stability_mm,uncertainty_mm\n");
+/// Measurements as CSV with a header line; `hand_edits_mm` (report key, change) are
+/// added to the values they changed and listed in the last column.
+pub fn measurements_csv(m: &[MeasurementValue], hand_edits_mm: &[(String, f64)]) -> String {
+    let mut s = String::from("name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm\n");
     for v in m {
+        let edit = hand_edits_mm
+            .iter()
+            .find(|(k, _)| *k == v.name)
+            .map(|e| e.1);
         // Names are report keys (no commas); quote defensively anyway.
         let name = if v.name.contains([',', '"']) {
             format!("\"{}\"", v.name.replace('"', "\"\""))
@@ -94,26 +103,39 @@ pub fn measurements_csv(m: &[MeasurementValue]) -> String {
             String::new()
         };
         s.push_str(&format!(
-            "{},{:.1},{:.1},{pm}\n",
-            name, v.value_mm, v.stability_mm
+            "{},{:.1},{:.1},{pm},{}\n",
+            name,
+            v.value_mm + edit.unwrap_or(0.0),
+            v.stability_mm,
+            edit.map(|d| format!("{d:.1}")).unwrap_or_default()
         ));
     }
     s
 }
 
 /// Writes `<dir>/measurements.json` and `<dir>/measurements.csv`; returns both paths.
+/// `m` are the fit's values; an `editor` with hand edits marks both files with them.
 pub fn export_measurements(
     dir: &Path,
     m: &[MeasurementValue],
+    editor: Option<&AvatarEditor>,
 ) -> Result<[PathBuf; 2], ExportError> {
     if m.is_empty() {
         return Err(ExportError::Nothing("no measurements yet"));
     }
     crate::io::atomic::create_dir(dir)?;
     let json = dir.join("measurements.json");
-    let text = serde_json::to_string_pretty(&measurements_json(m)).unwrap_or_default();
+    let mut report = measurements_json(m);
+    let mut changes = Vec::new();
+    if let Some(e) = editor {
+        e.mark_report(&mut report);
+        if e.edits().len() > 0 {
+            changes = e.changes_mm();
+        }
+    }
+    let text = serde_json::to_string_pretty(&report).unwrap_or_default();
     let csv = dir.join("measurements.csv");
-    let csv_text = measurements_csv(m);
+    let csv_text = measurements_csv(m, &changes);
     crate::io::atomic::write_all(&[(&json, text.as_bytes()), (&csv, csv_text.as_bytes())])?;
     Ok([json, csv])
 }
@@ -154,11 +176,14 @@ mod tests {
         assert_eq!(j["uncertainty_mm"]["chest_girth"], serde_json::json!(9.0));
         assert!(j["uncertainty_mm"].get("odd,name").is_none());
         assert_eq!(j["uncertain"], serde_json::json!(["odd,name"]));
-        let csv = measurements_csv(&values());
+        let csv = measurements_csv(&values(), &[("chest_girth".into(), 12.34)]);
         let lines: Vec<&str> = csv.lines().collect();
-        assert_eq!(lines[0], "name,value_mm,stability_mm,uncertainty_mm");
-        assert_eq!(lines[1], "chest_girth,1001.0,0.3,9.0");
-        assert_eq!(lines[2], "\"odd,name\",5.0,0.0,");
+        assert_eq!(
+            lines[0],
+            "name,value_mm,stability_mm,uncertainty_mm,hand_edit_mm"
+        );
+        assert_eq!(lines[1], "chest_girth,1013.4,0.3,9.0,12.3");
+        assert_eq!(lines[2], "\"odd,name\",5.0,0.0,,");
     }
 
     #[test]
@@ -178,7 +203,7 @@ mod tests {
             export_avatar(&dir, None, AvatarFormat::Obj),
             Err(ExportError::Nothing(_))
         ));
-        let [j, c] = export_measurements(&dir, &values()).expect("measurements");
+        let [j, c] = export_measurements(&dir, &values(), None).expect("measurements");
         let parsed: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(j).expect("json")).expect("valid json");
         assert_eq!(
@@ -189,7 +214,7 @@ mod tests {
             .expect("csv")
             .starts_with("name,"));
         assert!(matches!(
-            export_measurements(&dir, &[]),
+            export_measurements(&dir, &[], None),
             Err(ExportError::Nothing(_))
         ));
         let _ = std::fs::remove_dir_all(&dir);

@@ -2,7 +2,8 @@
 //! silhouette contour, contour parts, landmarks and skeleton drawn over them; the avatar
 //! in 3-D; the measurements with their stability; per-stage timings and frame rates; the
 //! shopper's kiosk flow ([`flow`]) and the operator's tools (calibration hook,
-//! recording, replay controls, exports).
+//! recording, replay controls, exports, hand edits of the avatar ([`edit_tool`]): a
+//! primary-button drag on the avatar moves the surface and the measurements follow).
 //!
 //! Entry point: [`run`] with any [`FrameSource`] and [`FrameProcessor`]; `fitstation
 //! demo-ui` runs it on the synthetic [`demo`] station. Threads: see [`runner`]. The
@@ -18,6 +19,7 @@ pub mod calib_wizard;
 pub mod demo;
 mod demo_ui;
 pub mod display;
+mod edit_tool;
 pub mod export;
 pub mod flow;
 pub mod frame_view;
@@ -32,6 +34,7 @@ pub mod stats;
 mod summary;
 mod tools;
 pub mod trace;
+pub mod ui_script;
 mod views;
 
 pub use demo_ui::{run_demo_cli, DemoUiArgs};
@@ -84,6 +87,10 @@ pub struct AppOptions {
     pub export_dir: PathBuf,
     /// Initial window size in points.
     pub window_size: [f32; 2],
+    /// Scripted input for window tests ([`ui_script`]); empty: none.
+    pub ui_script: Vec<ui_script::ScriptStep>,
+    /// Where the screen's hand edits are written as JSON at exit (window tests).
+    pub edits_out: Option<PathBuf>,
 }
 
 impl Default for AppOptions {
@@ -100,6 +107,8 @@ impl Default for AppOptions {
             record_dir: PathBuf::from("recordings"),
             export_dir: PathBuf::from("fitstation-export"),
             window_size: [1600.0, 900.0],
+            ui_script: Vec::new(),
+            edits_out: None,
         }
     }
 }
@@ -298,6 +307,10 @@ struct StationApp {
     last_fault: Option<(String, f64)>,
     /// When the last snapshot came (seconds since start), for the stall warning.
     last_snapshot_s: f64,
+    /// The operator's hand edits of the avatar ([`edit_tool`]).
+    edit: edit_tool::EditTool,
+    script: Option<ui_script::ScriptPlayer>,
+    edits_out: Option<PathBuf>,
 }
 
 /// How long a source fault stays in the top bar after it was reported (seconds).
@@ -395,6 +408,16 @@ impl StationApp {
             published_seen: 0,
             last_fault: None,
             last_snapshot_s: 0.0,
+            edit: {
+                let mut e = edit_tool::EditTool::default();
+                if opts.edits_out.is_some() {
+                    e.keep_record();
+                }
+                e
+            },
+            script: (!opts.ui_script.is_empty())
+                .then(|| ui_script::ScriptPlayer::new(opts.ui_script)),
+            edits_out: opts.edits_out,
         })
     }
 
@@ -455,7 +478,17 @@ impl StationApp {
     }
 
     /// Privacy: forget everything about the shopper on screen and in the processor.
+    /// Hand edits go too, unless the operator is editing (then they go with Discard
+    /// edits or Reset shopper).
     fn clear_subject(&mut self) {
+        if self.edit.frozen() && self.edit.on {
+            self.log("the shopper was cleared: hand edits kept while editing".into());
+        } else {
+            if self.edit.frozen() {
+                self.log("the shopper was cleared: hand edits discarded".into());
+            }
+            self.edit.discard();
+        }
         self.runner
             .controls
             .reset_subject
@@ -530,6 +563,27 @@ impl StationApp {
             }
         }
         true
+    }
+
+    /// Writes what the hand edits did to `--ui-edits-out` (window tests).
+    fn write_edits_out(&self) {
+        let Some(path) = &self.edits_out else {
+            return;
+        };
+        let mut record = self.edit.record_json();
+        if let Some(o) = record.as_object_mut() {
+            // The avatar view's turn, so that a test can tell an orbit from an edit.
+            o.insert("orbit_yaw_rad".into(), serde_json::json!(self.orbit.yaw));
+            let view = self
+                .layout
+                .avatar
+                .map(|r| [r.min.x, r.min.y, r.max.x, r.max.y]);
+            o.insert("avatar_view_pt".into(), serde_json::json!(view));
+        }
+        let text = serde_json::to_string_pretty(&record).unwrap_or_default();
+        if let Err(e) = crate::io::atomic::write(path, text) {
+            eprintln!("cannot write {}: {e}", path.display());
+        }
     }
 
     fn write_summary(&self) {
@@ -664,7 +718,12 @@ impl eframe::App for StationApp {
         Color32::from_rgb(r, g, b).to_normalized_gamma_f32()
     }
 
+    fn raw_input_hook(&mut self, ctx: &egui::Context, raw_input: &mut egui::RawInput) {
+        self.play_script(ctx, raw_input);
+    }
+
     fn on_exit(&mut self) {
+        self.write_edits_out();
         trace::dump();
         self.write_summary();
         self.stop_recording();

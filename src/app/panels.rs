@@ -114,28 +114,13 @@ impl StationApp {
     }
 
     pub(super) fn measurements_panel(&mut self, ui: &mut egui::Ui) {
+        // Hand edits: the frozen fit's values plus each one's change from the edits.
+        let (measurements, edited) = self.edit.edited_measurements().unwrap_or_else(|| {
+            let live = self.current.as_ref().map(|s| s.measurements.clone());
+            (live.unwrap_or_default(), Vec::new())
+        });
         if let FlowState::Result { card, .. } = self.flow.state() {
-            ui.heading("Your result");
-            egui::Grid::new("result_card").striped(true).show(ui, |ui| {
-                for m in &card.measurements {
-                    ui.label(pretty_name(&m.name));
-                    // How sure the station is goes with the value; shown after the settle
-                    // timeout, the frame-to-frame spread adds to it.
-                    let pm = if card.settled {
-                        m.uncertainty_mm
-                    } else {
-                        m.uncertainty_mm.max(m.stability_mm)
-                    };
-                    ui.label(
-                        RichText::new(value_text(m.value_mm, pm))
-                            .size(18.0)
-                            .strong(),
-                    );
-                    uncertainty_flag(ui, m);
-                    ui.end_row();
-                }
-            });
-            ui.separator();
+            result_card(ui, card, &edited);
         }
         ui.heading("Measurements");
         // Fitted from one camera: said where the values are (their ± is the wider one).
@@ -146,30 +131,13 @@ impl StationApp {
         }) {
             ui.label(RichText::new(m).color(egui::Color32::from_rgb(230, 160, 40)));
         }
-        let measurements: Vec<MeasurementValue> = self
-            .current
-            .as_ref()
-            .map(|s| s.measurements.clone())
-            .unwrap_or_default();
+        if !edited.is_empty() || self.edit.frozen() {
+            ui.label(RichText::new("Edited by hand (avatar frozen)").color(EDITED_COLOUR));
+        }
         if measurements.is_empty() {
             ui.label("waiting for a fit…");
         } else {
-            egui::Grid::new("measurements")
-                .striped(true)
-                .num_columns(4)
-                .show(ui, |ui| {
-                    for m in &measurements {
-                        ui.label(pretty_name(&m.name));
-                        fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
-                            ui.label(
-                                RichText::new(value_text(m.value_mm, m.uncertainty_mm)).monospace(),
-                            );
-                        });
-                        stability_indicator(ui, m.stability_mm);
-                        uncertainty_flag(ui, m);
-                        ui.end_row();
-                    }
-                });
+            measurement_grid(ui, &measurements, &edited);
         }
         ui.separator();
         ui.heading("Timings");
@@ -259,6 +227,72 @@ impl StationApp {
         rows
     }
 }
+
+/// The kiosk's result card (values changed by hand edits shown with the change).
+fn result_card(ui: &mut egui::Ui, card: &flow::ResultCard, edited: &[(String, f64)]) {
+    ui.heading("Your result");
+    egui::Grid::new("result_card").striped(true).show(ui, |ui| {
+        for m in &card.measurements {
+            ui.label(pretty_name(&m.name));
+            // How sure the station is goes with the value; shown after the settle
+            // timeout, the frame-to-frame spread adds to it.
+            let pm = if card.settled {
+                m.uncertainty_mm
+            } else {
+                m.uncertainty_mm.max(m.stability_mm)
+            };
+            let edit = edited.iter().find(|(k, _)| *k == m.name).map(|e| e.1);
+            ui.label(
+                RichText::new(value_text(m.value_mm + edit.unwrap_or(0.0), pm))
+                    .size(18.0)
+                    .strong(),
+            );
+            match edit {
+                Some(d) => edited_flag(ui, d),
+                None => uncertainty_flag(ui, m),
+            }
+            ui.end_row();
+        }
+    });
+    ui.separator();
+}
+
+/// The measurements grid: name, value, stability (or the hand edit's change), flag.
+fn measurement_grid(
+    ui: &mut egui::Ui,
+    measurements: &[MeasurementValue],
+    edited: &[(String, f64)],
+) {
+    egui::Grid::new("measurements")
+        .striped(true)
+        .num_columns(4)
+        .show(ui, |ui| {
+            for m in measurements {
+                ui.label(pretty_name(&m.name));
+                fixed_cell(ui, VALUE_CELL_WIDTH, |ui| {
+                    ui.label(RichText::new(value_text(m.value_mm, m.uncertainty_mm)).monospace());
+                });
+                match edited.iter().find(|(k, _)| *k == m.name) {
+                    Some((_, d)) => fixed_cell(ui, STABILITY_CELL_WIDTH, |ui| edited_flag(ui, *d)),
+                    None => stability_indicator(ui, m.stability_mm),
+                }
+                uncertainty_flag(ui, m);
+                ui.end_row();
+            }
+        });
+}
+
+/// "edited by hand +5.9" (mm) in the hand edits' colour.
+fn edited_flag(ui: &mut egui::Ui, d_mm: f64) {
+    ui.label(
+        RichText::new(format!("edited by hand {d_mm:+.1}"))
+            .small()
+            .color(EDITED_COLOUR),
+    );
+}
+
+/// Colour of the words that mark values edited by hand.
+const EDITED_COLOUR: Color32 = Color32::from_rgb(150, 200, 255);
 
 /// Report key -> label ("chest_girth" -> "chest girth").
 fn pretty_name(key: &str) -> String {

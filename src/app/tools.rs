@@ -6,6 +6,11 @@ use super::*;
 impl StationApp {
     pub(super) fn operator_panel(&mut self, ui: &mut egui::Ui) {
         egui::ScrollArea::vertical().show(ui, |ui| {
+            egui::CollapsingHeader::new("Edit avatar").default_open(true).show(ui, |ui| {
+                for line in self.edit.section_ui(ui) {
+                    self.log(line);
+                }
+            });
             egui::CollapsingHeader::new("Calibration").default_open(true).show(ui, |ui| {
                 self.calibration_section(ui);
             });
@@ -67,6 +72,7 @@ impl StationApp {
                     if st.ended { ", ended" } else { "" }
                 ));
                 if ui.button("Reset shopper (clear data)").clicked() {
+                    self.edit.discard();
                     self.flow.reset();
                     self.clear_subject();
                 }
@@ -79,23 +85,13 @@ impl StationApp {
                 ui.horizontal(|ui| {
                     for f in export::AvatarFormat::ALL {
                         if ui.button(format!("Avatar .{}", f.extension())).clicked() {
-                            let mesh = self.current.as_ref().and_then(|s| s.avatar.clone());
-                            let r = export::export_avatar(Path::new(&self.export_dir), mesh.as_deref(), f);
-                            self.log(match r {
-                                Ok(p) => format!("wrote {}", p.display()),
-                                Err(e) => format!("export failed: {e}"),
-                            });
+                            self.export_avatar(f);
                         }
                     }
                 });
                 ui.horizontal(|ui| {
                     if ui.button("Measurements JSON + CSV").clicked() {
-                        let m = self.current.as_ref().map(|s| s.measurements.clone()).unwrap_or_default();
-                        let r = export::export_measurements(Path::new(&self.export_dir), &m);
-                        self.log(match r {
-                            Ok([j, c]) => format!("wrote {} and {}", j.display(), c.display()),
-                            Err(e) => format!("export failed: {e}"),
-                        });
+                        self.export_measurements();
                     }
                     if ui.button("Screenshot").clicked() {
                         let p = Path::new(&self.export_dir).join(format!("screen-{}.png", self.frames));
@@ -107,6 +103,38 @@ impl StationApp {
             for l in &self.operator_log {
                 ui.label(RichText::new(l).small());
             }
+        });
+    }
+
+    /// Writes the avatar (as edited by hand, if it is) into the export folder.
+    pub(super) fn export_avatar(&mut self, format: export::AvatarFormat) {
+        let edited = self.edit.editor().map(|e| e.mesh());
+        let live = self.current.as_ref().and_then(|s| s.avatar.clone());
+        let r = export::export_avatar(
+            Path::new(&self.export_dir),
+            edited.or(live.as_deref()),
+            format,
+        );
+        self.log(match r {
+            Ok(p) => format!("wrote {}", p.display()),
+            Err(e) => format!("export failed: {e}"),
+        });
+    }
+
+    /// Writes the measurements (with the hand edits, if any) into the export folder.
+    pub(super) fn export_measurements(&mut self) {
+        let m = match self.edit.fit_values() {
+            Some(fit) => fit.to_vec(),
+            None => self
+                .current
+                .as_ref()
+                .map(|s| s.measurements.clone())
+                .unwrap_or_default(),
+        };
+        let r = export::export_measurements(Path::new(&self.export_dir), &m, self.edit.editor());
+        self.log(match r {
+            Ok([j, c]) => format!("wrote {} and {}", j.display(), c.display()),
+            Err(e) => format!("export failed: {e}"),
         });
     }
 

@@ -68,23 +68,47 @@ impl StationApp {
         // The avatar view with orbit controls and presets.
         let avatar_rect = cols[2];
         self.orbit_input(ui, avatar_rect);
-        let (mesh, take) = self.take_newest_avatar(ui);
+        // Hand edits hold the avatar on screen: new fits do not replace it.
+        let (mesh, take) = match self.edit.shown_mesh() {
+            Some(edited) => (self.show_edited(edited), false),
+            None => self.take_newest_avatar(ui),
+        };
         if take {
             self.fit_orbit_to(mesh.as_deref(), avatar_rect);
         }
         self.draw_avatar(ui, &painter, avatar_rect, mesh);
         self.avatar_presets(ui, avatar_rect);
+        if let Some(note) = self.edit.view_note(self.mode == Mode::Operator) {
+            painter.text(
+                avatar_rect.center_bottom() - Vec2::new(0.0, 8.0),
+                egui::Align2::CENTER_BOTTOM,
+                note,
+                egui::FontId::proportional(15.0),
+                Color32::from_rgb(150, 200, 255),
+            );
+        }
     }
 
-    /// Turns and zooms the avatar's orbit camera by dragging and scrolling over its view.
+    /// Turns and zooms the avatar's orbit camera by dragging and scrolling over its view;
+    /// while "Edit avatar" is on, the primary button edits ([`edit_tool`]) and the
+    /// others turn the view.
     fn orbit_input(&mut self, ui: &mut egui::Ui, avatar_rect: Rect) {
         let resp = ui.interact(
             avatar_rect,
             ui.scope_id().with("avatar_orbit"),
             egui::Sense::drag(),
         );
-        if resp.dragged() || resp.hovered() {
-            let d = resp.drag_delta();
+        let editing = self.mode == Mode::Operator && (self.edit.on || self.edit.dragging());
+        if editing {
+            self.edit_input(ui, &resp, avatar_rect);
+        }
+        let turning = resp.dragged() && !(editing && resp.dragged_by(egui::PointerButton::Primary));
+        if turning || resp.hovered() {
+            let d = if turning {
+                resp.drag_delta()
+            } else {
+                Vec2::ZERO
+            };
             let scroll = if resp.hovered() {
                 ui.input(|i| i.smooth_scroll_delta.y)
             } else {

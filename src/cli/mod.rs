@@ -101,6 +101,12 @@ pub struct ReplayArgs {
     /// With --ui: start with the operator tools open.
     #[arg(long, requires = "ui")]
     pub operator: bool,
+    /// With --ui, for window tests: play scripted input (`app::ui_script`).
+    #[arg(long, requires = "ui", hide = true)]
+    pub ui_script: Option<PathBuf>,
+    /// With --ui, for window tests: write what the hand edits did here at exit.
+    #[arg(long, requires = "ui", hide = true)]
+    pub ui_edits_out: Option<PathBuf>,
     /// Inject faults into the frames, e.g. 'drop-side@4:2,stall@8:1.5' (see --help).
     #[arg(long, value_name = "SPEC", long_help = crate::capture::inject::SPEC_HELP)]
     pub inject: Option<String>,
@@ -603,6 +609,11 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
             screenshot: args.screenshot.clone(),
             exit_after_frames: args.exit_after_frames,
             operator: args.operator,
+            ui_script: match &args.ui_script {
+                Some(p) => crate::app::ui_script::read_script(p)?,
+                None => Vec::new(),
+            },
+            edits_out: args.ui_edits_out.clone(),
             ..crate::app::AppOptions::default()
         };
         let source: Box<dyn FrameSource> = match faults {
