@@ -61,15 +61,26 @@ fn a_20_mm_drag_moves_the_point_keeps_the_far_body_and_undoes_exactly() {
 
     let h = handle as usize;
     let moved = after[h].distance(avatar.positions[h]);
-    assert!((moved - 0.020).abs() < 1e-9, "the point moved {:.4} mm", moved * 1e3);
+    assert!(
+        (moved - 0.020).abs() < 1e-9,
+        "the point moved {:.4} mm",
+        moved * 1e3
+    );
     let mut far = 0usize;
     for (i, (a, b)) in after.iter().zip(&avatar.positions).enumerate() {
         if b.distance(avatar.positions[h]) >= 0.30 {
             far += 1;
-            assert!(a.distance(*b) < 1e-3, "vertex {i}, 30 cm away, moved {:.3} mm", a.distance(*b) * 1e3);
+            assert!(
+                a.distance(*b) < 1e-3,
+                "vertex {i}, 30 cm away, moved {:.3} mm",
+                a.distance(*b) * 1e3
+            );
         }
     }
-    assert!(far > avatar.positions.len() / 2, "only {far} vertices are 30 cm away");
+    assert!(
+        far > avatar.positions.len() / 2,
+        "only {far} vertices are 30 cm away"
+    );
     // Something between moved, smoothly: less than the handle, more than nothing.
     let between = after
         .iter()
@@ -99,19 +110,36 @@ fn a_20_mm_drag_moves_the_point_keeps_the_far_body_and_undoes_exactly() {
     // The report says what was edited, where and by how much.
     let mut marked = report.clone();
     editor.mark_report(&mut marked);
-    let fit_waist = report["measurements_mm"]["waist_girth"].as_f64().expect("waist");
+    let fit_waist = report["measurements_mm"]["waist_girth"]
+        .as_f64()
+        .expect("waist");
     assert_eq!(marked["measurements_fit_mm"], report["measurements_mm"]);
-    let edited_waist = marked["measurements_mm"]["waist_girth"].as_f64().expect("waist");
-    assert!((edited_waist - (fit_waist + change)).abs() < 0.06, "{edited_waist} vs {fit_waist} + {change}");
-    assert!(marked["edited_by_hand"].as_array().expect("list").iter().any(|k| k == "waist_girth"));
+    let edited_waist = marked["measurements_mm"]["waist_girth"]
+        .as_f64()
+        .expect("waist");
+    assert!(
+        (edited_waist - (fit_waist + change)).abs() < 0.06,
+        "{edited_waist} vs {fit_waist} + {change}"
+    );
+    assert!(marked["edited_by_hand"]
+        .as_array()
+        .expect("list")
+        .iter()
+        .any(|k| k == "waist_girth"));
     let listed = &marked["hand_edits"][0];
     assert_eq!(listed["vertex"], handle);
     assert_eq!(listed["near"], "waist");
     assert!((listed["distance_mm"].as_f64().expect("distance") - 20.0).abs() < 0.05);
     assert!(listed["changes_mm"]["waist_girth"].as_f64().is_some());
     // Values no edit reached are the fit's.
-    for k in GIRTHS.iter().filter(|k| !edit.changes_mm.iter().any(|(c, _)| c == *k)) {
-        assert_eq!(marked["measurements_mm"][k], report["measurements_mm"][k], "{k}");
+    for k in GIRTHS
+        .iter()
+        .filter(|k| !edit.changes_mm.iter().any(|(c, _)| c == *k))
+    {
+        assert_eq!(
+            marked["measurements_mm"][k], report["measurements_mm"][k],
+            "{k}"
+        );
     }
 
     // Undo: bit for bit the fitted mesh and its measurements.
@@ -135,10 +163,18 @@ fn a_cancelled_drag_and_a_refused_edit_leave_the_avatar_as_it_was() {
     assert_ne!(editor.mesh().positions, avatar.positions);
     editor.cancel_drag();
     assert_eq!(editor.mesh().positions, avatar.positions);
-    assert!(editor.apply(handle, DVec3::new(0.0, 0.0, 0.4), 0.1).is_err());
-    assert!(editor.apply(handle, DVec3::new(f64::NAN, 0.0, 0.0), 0.1).is_err());
-    assert!(editor.apply(u32::MAX, DVec3::new(0.0, 0.0, 0.01), 0.1).is_err());
-    assert!(editor.apply(handle, DVec3::new(0.0, 0.0, 0.01), -1.0).is_err());
+    assert!(editor
+        .apply(handle, DVec3::new(0.0, 0.0, 0.4), 0.1)
+        .is_err());
+    assert!(editor
+        .apply(handle, DVec3::new(f64::NAN, 0.0, 0.0), 0.1)
+        .is_err());
+    assert!(editor
+        .apply(u32::MAX, DVec3::new(0.0, 0.0, 0.01), 0.1)
+        .is_err());
+    assert!(editor
+        .apply(handle, DVec3::new(0.0, 0.0, 0.01), -1.0)
+        .is_err());
     assert_eq!(editor.mesh().positions, avatar.positions);
     assert_eq!(editor.edits().len(), 0);
 }
@@ -160,31 +196,60 @@ fn the_edit_command_marks_the_report_and_undo_gives_back_the_fit_byte_for_byte()
     let fit_report = std::fs::read(out.join("report.json")).expect("report");
     // A point 5 mm in front of the waist's front vertex.
     let mesh = fitstation::mesh::io::read_mesh(&out.join("avatar.obj")).expect("mesh");
-    let front = mesh.positions[waist_front(&AvatarEditor::new(mesh.clone()).expect("editor")) as usize];
+    let front =
+        mesh.positions[waist_front(&AvatarEditor::new(mesh.clone()).expect("editor")) as usize];
     let at = format!("{},{},{}", front.x, front.y, front.z + 0.005);
     let dir_s = out.to_str().expect("utf-8");
     let o = fitstation(&["edit", dir_s, "--at", &at, "--by", "0,0,20"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let o = fitstation(&["edit", dir_s, "--vertex", "0", "--by", "0,5,0", "--reach-mm", "60"]);
+    let o = fitstation(&[
+        "edit",
+        dir_s,
+        "--vertex",
+        "0",
+        "--by",
+        "0,5,0",
+        "--reach-mm",
+        "60",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report: serde_json::Value =
-        serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report")).expect("JSON");
-    assert_eq!(report["hand_edits"].as_array().map(Vec::len), Some(2), "{report}");
-    assert!(report["edited_by_hand"].as_array().expect("list").iter().any(|k| k == "waist_girth"));
+        serde_json::from_slice(&std::fs::read(out.join("report.json")).expect("report"))
+            .expect("JSON");
+    assert_eq!(
+        report["hand_edits"].as_array().map(Vec::len),
+        Some(2),
+        "{report}"
+    );
+    assert!(report["edited_by_hand"]
+        .as_array()
+        .expect("list")
+        .iter()
+        .any(|k| k == "waist_girth"));
     let fitted: serde_json::Value = serde_json::from_slice(&fit_report).expect("JSON");
     assert_eq!(report["measurements_fit_mm"], fitted["measurements_mm"]);
     assert!(
-        report["measurements_mm"]["waist_girth"].as_f64() > fitted["measurements_mm"]["waist_girth"].as_f64()
+        report["measurements_mm"]["waist_girth"].as_f64()
+            > fitted["measurements_mm"]["waist_girth"].as_f64()
     );
     assert!(out.join("avatar.fit.obj").exists());
-    assert_ne!(std::fs::read(out.join("avatar.obj")).expect("avatar"), fit_obj);
+    assert_ne!(
+        std::fs::read(out.join("avatar.obj")).expect("avatar"),
+        fit_obj
+    );
 
     for _ in 0..2 {
         let o = fitstation(&["edit", dir_s, "--undo"]);
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     }
-    assert_eq!(std::fs::read(out.join("avatar.obj")).expect("avatar"), fit_obj);
-    assert_eq!(std::fs::read(out.join("report.json")).expect("report"), fit_report);
+    assert_eq!(
+        std::fs::read(out.join("avatar.obj")).expect("avatar"),
+        fit_obj
+    );
+    assert_eq!(
+        std::fs::read(out.join("report.json")).expect("report"),
+        fit_report
+    );
     assert!(!out.join("avatar.fit.obj").exists());
     let o = fitstation(&["edit", dir_s, "--undo"]);
     assert!(!o.status.success());

@@ -374,7 +374,9 @@ impl FaultInjector {
             None
         };
         let side_lost = !dropped(View::Front)
-            && self.side_dropped_since.is_some_and(|t0| t - t0 > self.side_lost_after_s);
+            && self
+                .side_dropped_since
+                .is_some_and(|t0| t - t0 > self.side_lost_after_s);
         if active.contains(&FaultKind::CutSide) || side_lost {
             self.matcher.clear();
             let index = self.formed;

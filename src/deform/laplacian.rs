@@ -40,19 +40,20 @@ pub struct LaplacianDeformer {
     delta: Vec<DVec3>,
 }
 
+/// Cotangent of the angle at `a` in triangle (a, b, c); 0 for a degenerate one.
+pub(crate) fn cotangent(a: DVec3, b: DVec3, c: DVec3) -> f64 {
+    let (u, w) = (b - a, c - a);
+    let s = u.cross(w).length();
+    if s > 0.0 {
+        u.dot(w) / s
+    } else {
+        0.0
+    }
+}
+
 /// Row-normalised, clamped cotangent weights of every ring, in ring order.
 fn cotangent_weights(mesh: &TriMesh, rings: &OneRings) -> Vec<f64> {
     let mut out = vec![0.0; rings.entry_count()];
-    let cot = |a: DVec3, b: DVec3, c: DVec3| {
-        // Cotangent of the angle at a in triangle (a, b, c).
-        let (u, w) = (b - a, c - a);
-        let s = u.cross(w).length();
-        if s > 0.0 {
-            u.dot(w) / s
-        } else {
-            0.0
-        }
-    };
     for v in 0..rings.vertex_count() {
         let nb = rings.neighbours(v);
         let m = nb.len();
@@ -68,11 +69,11 @@ fn cotangent_weights(mesh: &TriMesh, rings: &OneRings) -> Vec<f64> {
             let mut c = 0.0;
             if closed || k > 0 {
                 let prev = (k + m - 1) % m;
-                c += cot(at(prev), p, at(k));
+                c += cotangent(at(prev), p, at(k));
             }
             if closed || k + 1 < m {
                 let next = (k + 1) % m;
-                c += cot(at(next), p, at(k));
+                c += cotangent(at(next), p, at(k));
             }
             let c = (0.5 * c).max(MIN_COTANGENT);
             out[off + k] = c;

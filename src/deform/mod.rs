@@ -95,6 +95,7 @@ mod anderson;
 mod blocklu;
 mod encoding;
 mod laplacian;
+pub(crate) use laplacian::cotangent;
 mod mvc;
 mod newton;
 mod skinning;

@@ -67,32 +67,55 @@ pub fn run(args: &EditArgs) -> anyhow::Result<()> {
     let report_path = dir.join("report.json");
     let avatar_path = dir.join("avatar.obj");
     let fit_path = dir.join(FIT_AVATAR);
-    let mut report: Value = serde_json::from_str(
-        &std::fs::read_to_string(&report_path)
-            .with_context(|| format!("{}: a fit's output folder has report.json", dir.display()))?,
-    )
-    .with_context(|| format!("{} is not JSON", report_path.display()))?;
-    let base_path = if fit_path.exists() { &fit_path } else { &avatar_path };
-    let base_bytes = std::fs::read(base_path).with_context(|| format!("reading {}", base_path.display()))?;
+    let mut report: Value =
+        serde_json::from_str(&std::fs::read_to_string(&report_path).with_context(|| {
+            format!("{}: a fit's output folder has report.json", dir.display())
+        })?)
+        .with_context(|| format!("{} is not JSON", report_path.display()))?;
+    let base_path = if fit_path.exists() {
+        &fit_path
+    } else {
+        &avatar_path
+    };
+    let base_bytes =
+        std::fs::read(base_path).with_context(|| format!("reading {}", base_path.display()))?;
     let base = crate::mesh::io::parse_obj(&base_bytes[..], base_path, None)
         .with_context(|| format!("reading {}", base_path.display()))?;
     let vertex_count = base.vertex_count();
     let mut editor = AvatarEditor::new(base).context("the fitted avatar")?;
     let mut listed: Vec<(u32, DVec3, f64)> = Vec::new();
-    for (i, e) in report.get("hand_edits").and_then(Value::as_array).into_iter().flatten().enumerate() {
-        listed.push(listed_edit(e).with_context(|| format!("hand edit {} in {} is damaged", i + 1, report_path.display()))?);
+    for (i, e) in report
+        .get("hand_edits")
+        .and_then(Value::as_array)
+        .into_iter()
+        .flatten()
+        .enumerate()
+    {
+        listed.push(listed_edit(e).with_context(|| {
+            format!(
+                "hand edit {} in {} is damaged",
+                i + 1,
+                report_path.display()
+            )
+        })?);
     }
     if args.undo && listed.pop().is_none() {
         bail!("{} has no hand edit to undo", dir.display());
     }
     for (k, &(v, o, r)) in listed.iter().enumerate() {
-        editor.apply(v, o, r).with_context(|| format!("making hand edit {} again", k + 1))?;
+        editor
+            .apply(v, o, r)
+            .with_context(|| format!("making hand edit {} again", k + 1))?;
     }
     if !args.undo {
-        let by = args.by.context("say how far to move the handle: --by dx,dy,dz (mm)")?;
+        let by = args
+            .by
+            .context("say how far to move the handle: --by dx,dy,dz (mm)")?;
         let vertex = match (args.vertex, args.at) {
             (Some(v), _) => v,
-            (None, Some(p)) => editor.nearest_vertex(p).context("the avatar has no vertices")?,
+            (None, Some(p)) => editor
+                .nearest_vertex(p)
+                .context("the avatar has no vertices")?,
             (None, None) => bail!("say which point to move: --at x,y,z (m) or --vertex N"),
         };
         if vertex as usize >= vertex_count {
@@ -126,7 +149,12 @@ fn print_edit(e: &super::HandleEdit) {
 }
 
 /// Writes the edited avatar and report (or the fit's again when no edit is left).
-fn write(dir: &Path, report: &mut Value, editor: &AvatarEditor, base_bytes: &[u8]) -> anyhow::Result<()> {
+fn write(
+    dir: &Path,
+    report: &mut Value,
+    editor: &AvatarEditor,
+    base_bytes: &[u8],
+) -> anyhow::Result<()> {
     let avatar_path = dir.join("avatar.obj");
     let fit_path = dir.join(FIT_AVATAR);
     let report_path = dir.join("report.json");
@@ -142,7 +170,8 @@ fn write(dir: &Path, report: &mut Value, editor: &AvatarEditor, base_bytes: &[u8
         let text = serde_json::to_string_pretty(report)? + "\n";
         atomic::write_all(&[(&avatar_path, base_bytes), (&report_path, text.as_bytes())])?;
         if fit_path.exists() {
-            std::fs::remove_file(&fit_path).with_context(|| format!("removing {}", fit_path.display()))?;
+            std::fs::remove_file(&fit_path)
+                .with_context(|| format!("removing {}", fit_path.display()))?;
         }
         return Ok(());
     }

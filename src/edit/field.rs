@@ -11,8 +11,8 @@
 //! Laplacian would leave a spike there) and its rows over the first fixed ring make the
 //! bump meet the held surface with a matching slope.
 
+use crate::deform::cotangent;
 use crate::mesh::TriMesh;
-use glam::DVec3;
 use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap, HashSet};
 
@@ -281,7 +281,10 @@ impl Bilaplacian {
         let precond: Vec<f64> = (0..f)
             .map(|k| {
                 let own = self.diag[k] * self.diag[k] / self.area[k];
-                let others: f64 = self.rows[k].iter().map(|&(i, w)| w * w / self.area[i]).sum();
+                let others: f64 = self.rows[k]
+                    .iter()
+                    .map(|&(i, w)| w * w / self.area[i])
+                    .sum();
                 1.0 / (own + others)
             })
             .collect();
@@ -328,17 +331,6 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
 
-/// Cotangent of the angle at `a` in triangle (a, b, c); 0 for a degenerate one.
-fn cotangent(a: DVec3, b: DVec3, c: DVec3) -> f64 {
-    let (u, w) = (b - a, c - a);
-    let s = u.cross(w).length();
-    if s > 0.0 {
-        u.dot(w) / s
-    } else {
-        0.0
-    }
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -363,7 +355,10 @@ mod tests {
             .filter(|&&(v, _)| m.positions[v as usize].distance(h) < 0.015)
             .map(|&(_, w)| w)
             .collect();
-        assert!(!near.is_empty() && near.iter().all(|&w| w > 0.8), "{near:?}");
+        assert!(
+            !near.is_empty() && near.iter().all(|&w| w > 0.8),
+            "{near:?}"
+        );
         let far = f[1..]
             .iter()
             .filter(|&&(v, _)| m.positions[v as usize].distance(h) > 0.09)

@@ -170,7 +170,10 @@ impl AvatarEditor {
     pub fn begin_drag(&mut self, vertex: u32, reach_m: f64) -> Result<(), EditError> {
         self.cancel_drag();
         let field = field::influence(&self.mesh, &self.adjacency, vertex, reach_m)?;
-        let before = field.iter().map(|&(v, _)| self.mesh.positions[v as usize]).collect();
+        let before = field
+            .iter()
+            .map(|&(v, _)| self.mesh.positions[v as usize])
+            .collect();
         self.drag = Some(Drag {
             handle: vertex,
             reach_m,
@@ -228,7 +231,12 @@ impl AvatarEditor {
             moved_vertices: drag.field.len(),
             changes_mm,
         };
-        let before = drag.field.iter().map(|&(v, _)| v).zip(drag.before).collect();
+        let before = drag
+            .field
+            .iter()
+            .map(|&(v, _)| v)
+            .zip(drag.before)
+            .collect();
         self.edits.push(Applied { edit, before });
         self.edits.last().map(|a| &a.edit)
     }
@@ -247,7 +255,12 @@ impl AvatarEditor {
     ///
     /// # Errors
     /// As [`Self::begin_drag`] and [`Self::drag_to`]; the avatar is left as it was.
-    pub fn apply(&mut self, vertex: u32, offset_m: DVec3, reach_m: f64) -> Result<&HandleEdit, EditError> {
+    pub fn apply(
+        &mut self,
+        vertex: u32,
+        offset_m: DVec3,
+        reach_m: f64,
+    ) -> Result<&HandleEdit, EditError> {
         self.begin_drag(vertex, reach_m)?;
         if let Err(e) = self.drag_to(offset_m) {
             self.cancel_drag();
@@ -343,8 +356,13 @@ fn nearest_level(m: &Measurements, p: DVec3) -> String {
     if p.y < thigh.1 - 0.1 {
         return "below the thighs".into();
     }
-    [("chest", l.chest_m), ("waist", l.waist_m), ("hip", l.hip_m), thigh]
-        .into_iter()
-        .min_by(|a, b| (a.1 - p.y).abs().total_cmp(&(b.1 - p.y).abs()))
-        .map_or_else(String::new, |(name, _)| name.to_string())
+    [
+        ("chest", l.chest_m),
+        ("waist", l.waist_m),
+        ("hip", l.hip_m),
+        thigh,
+    ]
+    .into_iter()
+    .min_by(|a, b| (a.1 - p.y).abs().total_cmp(&(b.1 - p.y).abs()))
+    .map_or_else(String::new, |(name, _)| name.to_string())
 }

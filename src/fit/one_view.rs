@@ -74,7 +74,11 @@ impl DepthOffsets {
     pub fn mean(all: &[DepthOffsets]) -> Option<DepthOffsets> {
         let n = all.len() as f64;
         let head_top_rel = all.iter().map(|d| d.head_top_rel).sum::<f64>() / n;
-        let var = all.iter().map(|d| (d.head_top_rel - head_top_rel).powi(2)).sum::<f64>() / n;
+        let var = all
+            .iter()
+            .map(|d| (d.head_top_rel - head_top_rel).powi(2))
+            .sum::<f64>()
+            / n;
         (n > 0.0).then(|| DepthOffsets {
             trunk_rel: all.iter().map(|d| d.trunk_rel).sum::<f64>() / n,
             head_top_rel,
