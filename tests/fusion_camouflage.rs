@@ -8,7 +8,7 @@
 use fitstation::cli::{run_offline, RecordingSource};
 use fitstation::recording::FrameFormat;
 use fitstation::station::default_library;
-use fitstation::station::{StationOptions, StationProcessor};
+use fitstation::station::{StationOptions, StationProcessor, ViewSet};
 use fitstation::synth::scene::Clothing;
 use fitstation::synth::{load_truth, render_recording, set_member, truth_dir};
 use std::path::{Path, PathBuf};
@@ -50,12 +50,13 @@ struct Replay {
     report: serde_json::Value,
 }
 
-/// Replays `rec` through the station (person model on or off) and scores it.
-fn replay(rec: &Path, person_model: bool, masks: &Path) -> Replay {
+/// Replays `rec` through the station (person model on or off, from `views`) and scores it.
+fn replay(rec: &Path, person_model: bool, views: ViewSet, masks: &Path) -> Replay {
     let mut src = RecordingSource::open(rec).expect("open the recording");
     let calib = src.recording().calibration().clone();
     let opts = StationOptions {
         person_model,
+        views,
         masks_out: Some(masks.to_path_buf()),
         ..StationOptions::default()
     };
@@ -105,8 +106,8 @@ fn mean_iou(truth_dir: &Path, masks: &Path, view: &str, truth: &fitstation::synt
 fn the_person_mask_restores_clothing_in_the_backdrops_colour() {
     let dir = tmp("camo");
     let rec = camouflage_recording(&dir);
-    let without = replay(&rec, false, &dir.join("masks_off"));
-    let with = replay(&rec, true, &dir.join("masks_on"));
+    let without = replay(&rec, false, ViewSet::Both, &dir.join("masks_off"));
+    let with = replay(&rec, true, ViewSet::Both, &dir.join("masks_on"));
     println!(
         "without fusion: fitted {}, IoU front {:.3} side {:.3}, chest {:?} mm; messages {}",
         without.fitted,
@@ -141,5 +142,33 @@ fn the_person_mask_restores_clothing_in_the_backdrops_colour() {
     );
     let chest = with.chest_error_mm.expect("a fitted chest");
     assert!(chest.abs() <= 30.0, "chest girth error {chest:+.1} mm");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A subject in a white shirt on the pale wall (`synth-set --first-seed 41300 --count 12`,
+/// subject 1; found in session 13's one-camera judgement, a regression case since): the
+/// front camera alone sees a head, arms and legs with nothing person-sized between them.
+/// The network must still be asked (issue 23, item 3: every subject fitted from one
+/// camera), not only when the side view shows someone whole. Before, every frame said
+/// "Nobody is on the mark".
+#[test]
+fn the_person_mask_runs_for_a_subject_in_pieces_seen_by_the_front_camera_alone() {
+    let dir = tmp("pieces-front");
+    let rec = dir.join("white_shirt");
+    let mut cfg = set_member(41300, 1, SET_COUNT);
+    cfg.empty_frames = 10;
+    cfg.subject_frames = SUBJECT_FRAMES;
+    cfg.format = FrameFormat::Png;
+    render_recording(&cfg, &rec).expect("render the white-shirt recording");
+    let front = replay(&rec, true, ViewSet::Front, &dir.join("masks"));
+    println!(
+        "front camera alone: fitted {}, IoU front {:.3}, chest {:?} mm; messages {}",
+        front.fitted, front.iou_front, front.chest_error_mm, front.report["messages"]
+    );
+    assert!(front.fitted >= 1, "{}", front.report["messages"]);
+    // 0.89 here (and with both cameras): the fused mask still loses some of the white
+    // shirt, issue 20's open work; without the network it is empty.
+    assert!(front.iou_front >= 0.85, "IoU front {:.3}", front.iou_front);
+    assert_eq!(front.report["views"], serde_json::json!(["front"]));
     let _ = std::fs::remove_dir_all(&dir);
 }

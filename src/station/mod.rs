@@ -368,7 +368,10 @@ impl StationProcessor {
         timer: &mut FrameTimer,
         result: &mut SilhouetteResult,
     ) -> Result<(), String> {
-        if !self.person_masks.due(result) {
+        if !self
+            .person_masks
+            .due(result, &self.silhouettes, &self.calib)
+        {
             self.person_masks.tick();
             return Ok(());
         }

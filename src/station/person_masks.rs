@@ -93,13 +93,26 @@ impl PersonMasks {
         }
     }
 
-    /// Whether the network runs on this frame, judged on its backdrop silhouettes.
-    pub fn due(&self, result: &SilhouetteResult) -> bool {
+    /// Whether the network runs on this frame, judged on its backdrop silhouettes: before
+    /// the first run, when a view shows someone whole or in pieces (a shirt lost in the
+    /// backdrop leaves no person-sized component, only a head and legs).
+    pub fn due(
+        &self,
+        result: &SilhouetteResult,
+        silhouettes: &SilhouetteExecutor,
+        calib: &StationCalibration,
+    ) -> bool {
+        self.due_given(result, || someone_in_pieces(result, silhouettes, calib))
+    }
+
+    /// [`Self::due`] with the pieces' test given (asked only before the first run when no
+    /// view holds a person-sized component).
+    fn due_given(&self, result: &SilhouetteResult, in_pieces: impl FnOnce() -> bool) -> bool {
         if self.model.is_none() {
             return false;
         }
         match self.since {
-            None => someone_in_view(result),
+            None => someone_in_view(result) || in_pieces(),
             Some(n) => n + 1 >= EVERY_FRAMES || (n + 1 >= RETRY_FRAMES && refused(result)),
         }
     }
@@ -193,6 +206,30 @@ fn someone_in_view(result: &SilhouetteResult) -> bool {
         .any(|a| a.stats.largest_px >= SOMEONE_PX)
 }
 
+/// True when a view's backdrop pieces inside the standing volume (components of at least
+/// [`MIN_PIECE_CELLS`] cells) span at least [`MIN_PIECES_HEIGHT`] of its height: someone
+/// whose clothing matched the backdrop between the head and the legs.
+fn someone_in_pieces(
+    result: &SilhouetteResult,
+    silhouettes: &SilhouetteExecutor,
+    calib: &StationCalibration,
+) -> bool {
+    View::BOTH.iter().any(|&view| {
+        let mask = match view {
+            View::Front => &result.masks.front,
+            View::Side => &result.masks.side,
+        };
+        let Some(volume) = standing_volume_box(calib.camera(view), mask.width, mask.height) else {
+            return false;
+        };
+        let min_height = MIN_PIECES_HEIGHT * (volume.max_y - volume.min_y) as f64;
+        silhouettes
+            .model(view)
+            .foreground_box(MIN_PIECE_CELLS, volume)
+            .is_some_and(|b| (b.max_y - b.min_y) as f64 >= min_height)
+    })
+}
+
 /// True when the silhouettes were refused for what a lost piece of clothing causes.
 fn refused(result: &SilhouetteResult) -> bool {
     result.landmarks.verdicts.iter().any(|v| {
@@ -274,13 +311,14 @@ mod tests {
         let mut m = PersonMasks::load();
         assert!(m.model.is_some(), "{:?}", m.unavailable);
         let mut r = SilhouetteResult::empty();
-        assert!(!m.due(&r), "nobody in view");
+        assert!(!m.due_given(&r, || false), "nobody in view");
+        assert!(m.due_given(&r, || true), "someone in pieces");
         r.front.stats.largest_px = 50_000;
-        assert!(m.due(&r));
+        assert!(m.due_given(&r, || false));
         m.since = Some(0);
         let mut runs = 0;
         for _ in 0..3 * EVERY_FRAMES {
-            if m.due(&r) {
+            if m.due_given(&r, || false) {
                 runs += 1;
                 m.since = Some(0);
             } else {
@@ -291,7 +329,7 @@ mod tests {
         // Refused silhouettes bring the next run forward.
         r.landmarks.verdicts.push(Verdict::MultiplePeople);
         m.since = Some(RETRY_FRAMES - 1);
-        assert!(m.due(&r));
-        assert!(!PersonMasks::off().due(&r));
+        assert!(m.due_given(&r, || false));
+        assert!(!PersonMasks::off().due_given(&r, || true));
     }
 }
