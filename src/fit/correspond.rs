@@ -174,6 +174,8 @@ pub struct ControlSet {
     /// Per slice: vertices of each other part (arms, torso, legs; not the head) in the same
     /// height band, whose silhouettes can merge with the slice's part (see [`occluded`]).
     pub slice_occluders: Vec<Vec<Vec<u32>>>,
+    /// The part of each group of [`Self::slice_occluders`].
+    pub slice_occluder_parts: Vec<Vec<Part>>,
     /// Per leg slice: the other leg's vertices in the same band (in the side view the two
     /// legs overlap; only the one reaching further out owns the silhouette's edge).
     pub slice_rivals: Vec<Vec<u32>>,
@@ -254,13 +256,16 @@ pub fn select_controls(
             }
             let slice = set.slice_members.len() as u32;
             let mut occluders = Vec::new();
+            let mut occluder_parts = Vec::new();
             for other in Part::ALL {
                 let vs = &all_bands[part_index(other)][k];
                 if other != part && other != Part::Head && Some(other) != rival && !vs.is_empty() {
                     occluders.push(vs.clone());
+                    occluder_parts.push(other);
                 }
             }
             set.slice_occluders.push(occluders);
+            set.slice_occluder_parts.push(occluder_parts);
             set.slice_rivals.push(
                 rival
                     .map(|r| all_bands[part_index(r)][k].clone())
@@ -329,7 +334,19 @@ fn bearing(cam: &Camera, status: Status, p: DVec3) -> (f64, f64) {
 /// edge: an arm sticking out behind the back, a hand against the hip) hides the edge;
 /// a part wholly inside or clearly beyond (with a gap) does not. For a leg in the side
 /// view, the other leg hides the edge only when it reaches further out.
-fn occluded(positions: &[DVec3], set: &ControlSet, c: &Control, cam: &Camera) -> bool {
+///
+/// With `side_arms_seen` (the side view's arms located by the pose network, see
+/// [`super::sections::SideOccluder`]) the avatar's arms hide no edge of the trunk in the
+/// side view: the edge is searched and the arms seen in the picture decide whether it is
+/// theirs. The avatar's arm is only as good as the candidate's pose and depth: a trunk
+/// fitted too shallow has its own arm over its back edge and never sees the back.
+fn occluded(
+    positions: &[DVec3],
+    set: &ControlSet,
+    c: &Control,
+    cam: &Camera,
+    side_arms_seen: bool,
+) -> bool {
     let (u_c, depth) = bearing(cam, c.status, positions[c.vertex as usize]);
     let margin_m = match c.status.view() {
         View::Front => OCCLUSION_MARGIN_M,
@@ -346,12 +363,20 @@ fn occluded(positions: &[DVec3], set: &ControlSet, c: &Control, cam: &Camera) ->
         }
         (hi >= lo).then_some((lo, hi))
     };
-    for group in set
+    let trunk_in_side = c.part == Part::Torso && c.status.view() == View::Side;
+    let parts = set.slice_occluder_parts.get(slice);
+    for (g, group) in set
         .slice_occluders
         .get(slice)
         .map(|g| g.as_slice())
         .unwrap_or(&[])
+        .iter()
+        .enumerate()
     {
+        let arm = parts.and_then(|p| p.get(g)).is_some_and(|p| p.is_arm());
+        if side_arms_seen && trunk_in_side && arm {
+            continue;
+        }
         if let Some((lo, hi)) = near(group) {
             if lo <= u_c + margin && hi >= u_c - margin {
                 return true;
@@ -380,11 +405,13 @@ const SIDE_OCCLUSION_MARGIN_M: f64 = 0.003;
 /// Finds the target of every control on the current `positions`.
 ///
 /// Writes one entry per control into `targets` (None: no reliable target this frame).
+/// `side_arms_seen`: the side view's arms are located (see [`occluded`]).
 pub fn find_targets(
     positions: &[DVec3],
     set: &ControlSet,
     views: [(&Camera, MaskRef<'_>); 2],
     opts: &SearchOptions,
+    side_arms_seen: bool,
     centroids: &mut Vec<DVec3>,
     targets: &mut Vec<Option<DVec3>>,
 ) -> TargetStats {
@@ -404,7 +431,7 @@ pub fn find_targets(
             View::Front => views[0],
             View::Side => views[1],
         };
-        if occluded(positions, set, c, cam) {
+        if occluded(positions, set, c, cam, side_arms_seen) {
             stats.occluded += 1;
             if debug {
                 *occ_per
@@ -586,6 +613,54 @@ mod tests {
     use crate::camera::StationCalibration;
     use crate::mesh::shapes;
 
+    /// A torso slice's back edge with the avatar's arm reaching over it in the side view:
+    /// hidden while the arm is only the avatar's guess, searched once the side view's
+    /// arms are located (they decide later whether the edge is theirs).
+    #[test]
+    fn the_avatars_arm_hides_the_trunks_side_edge_only_while_the_arms_are_unseen() {
+        let calib = StationCalibration::nominal(720, 1280, 1100.0, 3.0, 1.1, 1.0);
+        // Vertex 0: the trunk's back at chest height; 1-2: the avatar's arm at that
+        // height, from inside the trunk to past its back.
+        let positions = vec![
+            DVec3::new(0.0, 1.2, -0.20),
+            DVec3::new(0.18, 1.2, -0.05),
+            DVec3::new(0.18, 1.2, -0.22),
+        ];
+        let set = ControlSet {
+            controls: vec![Control {
+                vertex: 0,
+                part: Part::Torso,
+                status: Status::Back,
+                slice: 0,
+            }],
+            slice_members: vec![vec![0]],
+            slice_occluders: vec![vec![vec![1, 2]]],
+            slice_occluder_parts: vec![vec![Part::LeftArm]],
+            slice_rivals: vec![Vec::new()],
+            slice_part: vec![Part::Torso],
+            slice_band: vec![0],
+            ..ControlSet::default()
+        };
+        let c = &set.controls[0];
+        assert!(occluded(&positions, &set, c, &calib.side, false));
+        assert!(!occluded(&positions, &set, c, &calib.side, true));
+        // A leg is no arm: it still hides the edge.
+        let mut legs = set.clone();
+        legs.slice_occluder_parts = vec![vec![Part::LeftLeg]];
+        assert!(occluded(&positions, &legs, c, &calib.side, true));
+        // The front view's controls keep the avatar's arms as occluders.
+        let front = Control {
+            status: Status::Left,
+            ..*c
+        };
+        let arm_beside = vec![
+            DVec3::new(0.15, 1.2, -0.1),
+            DVec3::new(0.10, 1.2, -0.1),
+            DVec3::new(0.20, 1.2, -0.1),
+        ];
+        assert!(occluded(&arm_beside, &set, &front, &calib.front, true));
+    }
+
     /// The silhouette of a whole mesh, through the fitter's own rasteriser.
     pub(crate) fn render_mask(mesh: &TriMesh, cam: &Camera) -> Vec<u8> {
         let mut m = Vec::new();
@@ -647,6 +722,7 @@ mod tests {
                 &set,
                 views,
                 &SearchOptions::default(),
+                false,
                 &mut c,
                 &mut t,
             );
@@ -706,6 +782,7 @@ mod tests {
             &set,
             views,
             &SearchOptions::default(),
+            false,
             &mut c,
             &mut t,
         );

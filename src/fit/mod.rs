@@ -465,6 +465,7 @@ impl Fitter {
                 &s.controls,
                 views,
                 &self.opts.search,
+                self.side_occluders.iter().any(Option::is_some),
                 &mut self.centroids,
                 &mut self.targets,
             );
