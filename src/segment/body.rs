@@ -24,11 +24,20 @@ impl BackgroundModel {
         let min_area = ((self.opts.min_person_fraction * nc) as u64).max(1);
         let comps = &self.runs.components;
         stats.large_components = comps.iter().filter(|c| c.area >= min_area).count() as u32;
+        self.pieces.clear();
         let Some(volume) = self.standing_cells else {
-            let (first, second) = self.runs.two_largest();
-            stats.second_px = second.map_or(0, |c| comps[c].area * cell);
+            let first = self.runs.two_largest().0;
             let body = first.filter(|&c| comps[c].area >= min_area)?;
-            stats.largest_px = comps[body].area * cell;
+            self.find_pieces(body, min_area);
+            let comps = &self.runs.components;
+            let pieces = &self.pieces;
+            stats.second_px = (0..comps.len())
+                .filter(|&c| c != body && !pieces.contains(&c))
+                .map(|c| comps[c].area * cell)
+                .max()
+                .unwrap_or(0);
+            stats.largest_px = self.person_cells(body) * cell;
+            stats.large_components -= self.large_pieces(min_area);
             return Some(body);
         };
         // The large component with most cells in the volume (ties: the larger).
@@ -36,10 +45,16 @@ impl BackgroundModel {
         let body = (0..comps.len())
             .filter(|&c| comps[c].area >= min_area)
             .max_by_key(|&c| (inside(c), comps[c].area))?;
-        stats.largest_px = comps[body].area * cell;
+        self.find_pieces(body, min_area);
+        let comps = &self.runs.components;
+        let inside = |c: usize| cells_in_box(&self.runs, c, volume);
+        stats.largest_px = self.person_cells(body) * cell;
+        stats.large_components -= self.large_pieces(min_area);
         stats.second_px = 0;
         stats.bystanders = 0;
-        for c in (0..comps.len()).filter(|&c| c != body && comps[c].area >= min_area) {
+        for c in (0..comps.len())
+            .filter(|&c| c != body && comps[c].area >= min_area && !self.pieces.contains(&c))
+        {
             if inside(c) as f64 >= IN_BOOTH_SHARE * comps[c].area as f64 {
                 stats.second_px = stats.second_px.max(comps[c].area * cell);
             } else {
@@ -47,6 +62,88 @@ impl BackgroundModel {
             }
         }
         Some(body)
+    }
+
+    /// The other pieces of the person whose clothing the backdrop lost in a band (a
+    /// shirt of the wall's colour leaves the head above it, or the legs below it, apart
+    /// from the rest): components of at least `min_area / PIECE_AREA_DIV` cells that the
+    /// learned person prior covers ([`PIECE_PRIOR_SHARE`] of their cells at p >= 0.5),
+    /// within the body's columns and at most [`PIECE_GAP_DIV`]-th of its height above or
+    /// below it. Without a prior there are none (a piece could be anything).
+    fn find_pieces(&mut self, body: usize, min_area: u64) {
+        let Some(prior) = self.prior.as_ref() else {
+            return;
+        };
+        let comps = &self.runs.components;
+        let b = comps[body];
+        let gap = ((b.max_y - b.min_y) / PIECE_GAP_DIV).max(1);
+        let min_piece = (min_area / PIECE_AREA_DIV).max(1);
+        for (c, k) in comps.iter().enumerate() {
+            if k.area < min_piece {
+                continue;
+            }
+            let beside = k.min_x >= b.min_x && k.max_x <= b.max_x;
+            let near = k.max_y + gap >= b.min_y && k.min_y <= b.max_y + gap;
+            if c == body || !beside || !near {
+                continue;
+            }
+            let covered = prior_cells(&self.runs, c, prior);
+            if covered as f64 >= PIECE_PRIOR_SHARE * k.area as f64 {
+                self.pieces.push(c);
+            }
+        }
+    }
+
+    /// Cells of the body and its pieces.
+    fn person_cells(&self, body: usize) -> u64 {
+        let comps = &self.runs.components;
+        comps[body].area + self.pieces.iter().map(|&c| comps[c].area).sum::<u64>()
+    }
+
+    /// How many of the pieces are person-sized components themselves.
+    fn large_pieces(&self, min_area: u64) -> u32 {
+        let comps = &self.runs.components;
+        self.pieces
+            .iter()
+            .filter(|&&c| comps[c].area >= min_area)
+            .count() as u32
+    }
+
+    /// Joins the pieces to the body in the coarse body mask: each piece's cells, and the
+    /// cells between it and the body (its columns, the rows between the two boxes and
+    /// one more each way) where the prior says person.
+    fn join_pieces(&mut self, body: usize) {
+        let Some(prior) = self.prior.as_ref() else {
+            return;
+        };
+        let (cw, ch) = (self.runs.width as usize, self.runs.height as usize);
+        let comps = &self.runs.components;
+        let b = comps[body];
+        for &c in &self.pieces {
+            for (r, run) in self.runs.runs.iter().enumerate() {
+                if self.runs.label[r] as usize == c {
+                    let y = run.y as usize;
+                    self.coarse_body[y * cw + run.x0 as usize..y * cw + run.x1 as usize]
+                        .fill(imgproc::MASK_ON);
+                }
+            }
+            let k = comps[c];
+            let (lo, hi) = if k.max_y <= b.min_y {
+                (k.max_y, b.min_y)
+            } else if k.min_y >= b.max_y {
+                (b.max_y, k.min_y)
+            } else {
+                continue; // side by side: joined by the rows they share, if at all
+            };
+            let rows = lo.saturating_sub(1) as usize..((hi + 1) as usize).min(ch);
+            for y in rows {
+                for x in k.min_x as usize..(k.max_x as usize).min(cw) {
+                    if prior.at_cell(x, y) >= PIECE_PRIOR_LEVEL {
+                        self.coarse_body[y * cw + x] = imgproc::MASK_ON;
+                    }
+                }
+            }
+        }
     }
 
     /// Writes component `body` into the coarse body mask with its holes filled, unless
@@ -57,6 +154,7 @@ impl BackgroundModel {
     pub(super) fn fill_body_holes(&mut self, body: usize) {
         let (_, _, cw, ch) = self.grid();
         imgproc::write_component(&self.runs, body, &mut self.coarse_body);
+        self.join_pieces(body);
         if self.opts.open_holes {
             let (coarse, zone) = (&self.coarse, &self.coarse_model.zone);
             imgproc::fill_holes_selective(
@@ -88,9 +186,20 @@ impl BackgroundModel {
         }
     }
 
-    /// The person's pixel box: component `body`'s coarse box grown by one cell.
+    /// The person's pixel box: component `body`'s coarse box with its pieces', grown by
+    /// one cell.
     pub(super) fn person_box(&self, body: usize) -> PixelBox {
-        let c = self.runs.components[body];
+        let comps = &self.runs.components;
+        let c = self.pieces.iter().fold(comps[body], |a, &p| {
+            let k = comps[p];
+            imgproc::Component {
+                min_x: a.min_x.min(k.min_x),
+                min_y: a.min_y.min(k.min_y),
+                max_x: a.max_x.max(k.max_x),
+                max_y: a.max_y.max(k.max_y),
+                ..a
+            }
+        });
         PixelBox {
             min_x: (c.min_x.saturating_sub(1)) * COARSE,
             min_y: (c.min_y.saturating_sub(1)) * COARSE,
@@ -109,6 +218,32 @@ pub(super) fn border_touch(mask: &Mask) -> BorderTouch {
         left: (0..h).any(|y| mask.data[y * w] != 0),
         right: (0..h).any(|y| mask.data[y * w + w - 1] != 0),
     }
+}
+
+/// A piece of the person is at least this fraction of a person-sized component.
+const PIECE_AREA_DIV: u64 = 8;
+/// ... at most this fraction of the body's height away from it.
+const PIECE_GAP_DIV: u32 = 8;
+/// ... with at least this share of its cells at the prior's [`PIECE_PRIOR_LEVEL`].
+const PIECE_PRIOR_SHARE: f64 = 0.6;
+/// The prior's 8-bit level of p = 0.5.
+const PIECE_PRIOR_LEVEL: u8 = 128;
+
+/// Cells of component `comp` of `runs` where `prior` says person (p >= 0.5).
+fn prior_cells(
+    runs: &imgproc::RunComponents,
+    comp: usize,
+    prior: &super::fusion::PersonPrior,
+) -> u64 {
+    let mut n = 0u64;
+    for (run, &label) in runs.runs.iter().zip(&runs.label) {
+        if label as usize == comp {
+            n += (run.x0..run.x1)
+                .filter(|&x| prior.at_cell(x as usize, run.y as usize) >= PIECE_PRIOR_LEVEL)
+                .count() as u64;
+        }
+    }
+    n
 }
 
 /// A large component with at least this share of its cells inside the standing volume

@@ -400,6 +400,9 @@ pub struct BackgroundModel {
     eroded: Vec<u8>,
     dilated: Vec<u8>,
     runs: RunComponents,
+    /// Components of `runs` that are further pieces of the person (see
+    /// `body::find_pieces`).
+    pieces: Vec<usize>,
     hole_runs: RunComponents,
     /// Coarse runs of the holes left open in the last frame (see [`Self::open_holes`]).
     open_holes: Vec<imgproc::Run>,
@@ -539,6 +542,7 @@ impl BackgroundModel {
             eroded: Vec::new(),
             dilated: Vec::new(),
             runs: RunComponents::default(),
+            pieces: Vec::new(),
             hole_runs: RunComponents::default(),
             open_holes: Vec::new(),
             band_state: vec![BAND_NONE; n],
