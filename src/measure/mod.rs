@@ -130,6 +130,10 @@ pub struct MeasurementLevels {
 pub struct GirthSample {
     pub height_m: f64,
     pub girth_mm: f64,
+    /// How far back the torso loop reaches there (its least z, station metres): the
+    /// hip's level is where this is least.
+    #[serde(default)]
+    pub back_z_m: f64,
 }
 
 /// Stature and tape girths of one body (see the module docs for the definitions).
@@ -851,6 +855,7 @@ impl Measurer {
             .extend(self.profile.iter().map(|s| GirthSample {
                 height_m: s.y,
                 girth_mm: s.hull.perimeter_m * MM_PER_M,
+                back_z_m: s.hull.z_min,
             }));
         Ok(())
     }

@@ -159,8 +159,23 @@ pub struct StationProcessor {
     said_person_masks: bool,
     /// The views the last fitted pair was fitted from.
     last_views: Option<ViewSet>,
+    /// The side camera's pixel at the mark, metres (what the side view can tell apart).
+    side_pixel_m: f64,
     /// The empty image that stands for a side frame not looked at.
     no_frame: image::RgbImage,
+}
+
+/// The side camera's pixel footprint at the mark (its distance over its focal length),
+/// metres; 0 for a degenerate calibration.
+fn side_pixel_at_mark_m(calib: &StationCalibration) -> f64 {
+    let cam = &calib.side;
+    let d = cam.center_in_station().length();
+    let f = cam.intrinsics.fx.max(cam.intrinsics.fy);
+    if d.is_finite() && f > 0.0 {
+        d / f
+    } else {
+        0.0
+    }
 }
 
 impl StationProcessor {
@@ -174,9 +189,11 @@ impl StationProcessor {
                 Some(TemplateProfiles::of_template(library.template()));
         }
         let fitter = Fitter::new(library, opts.fit.clone())?;
+        let side_pixel_m = side_pixel_at_mark_m(&calib);
         Ok(StationProcessor {
             silhouettes: SilhouetteExecutor::new(&calib, opts.silhouette),
             calib,
+            side_pixel_m,
             fitter,
             learned: 0,
             smoothed: vec![SmoothedValue::default(); MEASUREMENT_KEYS.len()],
@@ -600,11 +617,15 @@ impl StationProcessor {
                 self.fitter
                     .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
             });
-            let frame_sigma = match (side_seen, *k == "stature", stature_sd_mm) {
+            let mut frame_sigma = match (side_seen, *k == "stature", stature_sd_mm) {
                 (false, true, Some(sd)) => uncertainty::STATURE_SIGMA_MM.hypot(sd),
                 (true, ..) => uncertainty::frame_sigma_mm(k, v, evidence),
                 _ => uncertainty::frame_sigma_one_view_mm(k, v, evidence),
             };
+            if *k == "hip_girth" {
+                frame_sigma =
+                    frame_sigma.hypot(uncertainty::hip_level_sigma_mm(&m, self.side_pixel_m));
+            }
             if crate::fit::debug_enabled() {
                 eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");
             }

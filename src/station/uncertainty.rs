@@ -173,6 +173,38 @@ pub fn frame_sigma_one_view_mm(key: &str, girth_mm: f64, evidence: Option<LevelE
     (half_pi * half_pi * (vw + depth_mm * depth_mm) + shape * shape).sqrt()
 }
 
+/// The standard deviation (mm) the hip's level adds to its girth. The hip is taken
+/// where the torso reaches furthest back (the spec's definition), and on a flat buttock
+/// the back lies within a pixel of its furthest point over several centimetres of
+/// height, where the girth changes fast: the side view cannot say where in that range
+/// the person's furthest point is. Over the avatar's torso profile between the crotch
+/// and waist levels, the heights whose back lies within `resolution_m` (the side
+/// camera's pixel at the subject) of the furthest give girths up to this far from the
+/// reported one; half of it is the sigma (the `±` then spans the range). 0 without a
+/// profile.
+pub fn hip_level_sigma_mm(m: &Measurements, resolution_m: f64) -> f64 {
+    let l = &m.levels;
+    let band =
+        |s: &&crate::measure::GirthSample| s.height_m >= l.crotch_m && s.height_m <= l.waist_m;
+    let Some(back) = m
+        .torso_profile
+        .iter()
+        .filter(band)
+        .map(|s| s.back_z_m)
+        .min_by(f64::total_cmp)
+    else {
+        return 0.0;
+    };
+    let worst = m
+        .torso_profile
+        .iter()
+        .filter(band)
+        .filter(|s| s.back_z_m <= back + resolution_m)
+        .map(|s| (s.girth_mm - m.hip_girth_mm).abs())
+        .fold(0.0, f64::max);
+    0.5 * worst
+}
+
 /// The reported `±` (mm, two standard deviations) from the window's per-frame sigmas
 /// (their trimmed mean, `sigma_frame_mm`) and the spread of its values (`values_sd_mm`).
 pub fn reported_pm_mm(sigma_frame_mm: f64, values_sd_mm: f64) -> f64 {
@@ -258,6 +290,46 @@ mod tests {
             frame_sigma_one_view_mm("stature", 1700.0, None),
             STATURE_SIGMA_MM
         );
+    }
+
+    /// A back within a pixel of its furthest over several heights leaves the hip's level,
+    /// and so its girth, open over that range; a clear furthest point does not.
+    #[test]
+    fn a_flat_buttock_widens_the_hip_by_the_girths_its_level_may_take() {
+        let library = crate::body::ShapeLibrary::shared().expect("the bundled shape library");
+        let mut m = crate::measure::measure(&library.template().mesh).expect("measured");
+        let (crotch, waist) = (m.levels.crotch_m, m.levels.waist_m);
+        let sample = |k: usize, back_mm: f64, girth_mm: f64| crate::measure::GirthSample {
+            height_m: crotch + (waist - crotch) * k as f64 / 10.0,
+            girth_mm,
+            back_z_m: -0.2 - back_mm / 1000.0,
+        };
+        m.hip_girth_mm = 1000.0;
+        // A clear furthest point (k = 3): the rest 5 mm or more in front of it.
+        m.torso_profile = (0..=10)
+            .map(|k| sample(k, if k == 3 { 5.0 } else { 0.0 }, 1030.0 - 10.0 * k as f64))
+            .collect();
+        assert_eq!(hip_level_sigma_mm(&m, 0.003), 0.0);
+        // Flat from k = 2 to k = 6 (within 1 mm), the girth falling 10 mm a step: the
+        // reported 1000 mm may be 40 mm smaller (k = 6 against k = 2).
+        m.torso_profile = (0..=10)
+            .map(|k| {
+                let back = if (2..=6).contains(&k) {
+                    5.0 - 0.2 * k as f64
+                } else {
+                    0.0
+                };
+                sample(k, back, 1020.0 - 10.0 * k as f64)
+            })
+            .collect();
+        assert!((hip_level_sigma_mm(&m, 0.003) - 20.0).abs() < 1e-9);
+        // Samples above the waist do not count.
+        m.torso_profile.push(crate::measure::GirthSample {
+            height_m: waist + 0.05,
+            girth_mm: 500.0,
+            back_z_m: -0.3,
+        });
+        assert!((hip_level_sigma_mm(&m, 0.003) - 20.0).abs() < 1e-9);
     }
 
     #[test]
