@@ -626,6 +626,10 @@ impl StationProcessor {
                 frame_sigma =
                     frame_sigma.hypot(uncertainty::hip_level_sigma_mm(&m, self.side_pixel_m));
             }
+            if let Some((crate::fit::sections::Region::Torso, y)) = uncertainty::level_of(k, &m) {
+                let excess = uncertainty::loop_excess_sigma_mm(v, self.fitter.trunk_extents_at(y));
+                frame_sigma = frame_sigma.hypot(excess);
+            }
             if crate::fit::debug_enabled() {
                 eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");
             }

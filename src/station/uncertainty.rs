@@ -205,6 +205,19 @@ pub fn hip_level_sigma_mm(m: &Measurements, resolution_m: f64) -> f64 {
     0.5 * worst
 }
 
+/// The standard deviation (mm) of a torso girth whose tape loop takes in more than the
+/// trunk: a convex section's perimeter is at most its bounding box's, `2 (w + d)`, so a
+/// girth beyond that for the trunk's own breadth `w` and depth `d` at the level (the
+/// avatar's torso vertices, `trunk_m`) went around something else too, an arm the avatar
+/// holds against its side. At least the excess is not the person's trunk: it is the
+/// sigma. 0 when the girth is within the bound or the extents are unknown.
+pub fn loop_excess_sigma_mm(girth_mm: f64, trunk_m: Option<(f64, f64)>) -> f64 {
+    let Some((w, d)) = trunk_m else {
+        return 0.0;
+    };
+    (girth_mm - 2000.0 * (w + d)).max(0.0)
+}
+
 /// The reported `±` (mm, two standard deviations) from the window's per-frame sigmas
 /// (their trimmed mean, `sigma_frame_mm`) and the spread of its values (`values_sd_mm`).
 pub fn reported_pm_mm(sigma_frame_mm: f64, values_sd_mm: f64) -> f64 {
@@ -330,6 +343,14 @@ mod tests {
             back_z_m: -0.3,
         });
         assert!((hip_level_sigma_mm(&m, 0.003) - 20.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_loop_longer_than_the_trunks_box_says_by_how_much() {
+        // A 300 x 250 mm trunk: its girth is at most 1100 mm.
+        assert_eq!(loop_excess_sigma_mm(950.0, Some((0.30, 0.25))), 0.0);
+        assert!((loop_excess_sigma_mm(1450.0, Some((0.30, 0.25))) - 350.0).abs() < 1e-9);
+        assert_eq!(loop_excess_sigma_mm(1450.0, None), 0.0);
     }
 
     #[test]
