@@ -6,13 +6,12 @@
 //! Without `xvfb-run` the test prints a loud SKIPPED line and passes, except when the
 //! environment variable `CI` is set, where it fails (as `ui_xvfb`).
 
-use std::os::unix::process::CommandExt;
+use std::ffi::OsString;
 use std::path::PathBuf;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod xvfb_common;
-use xvfb_common::have;
+use xvfb_common::{have, run_in_xvfb};
 
 /// Screen frames before the screenshot.
 const FRAMES: u64 = 90;
@@ -39,33 +38,16 @@ fn a_lost_camera_shows_in_the_top_bar() {
     let _ = std::fs::remove_dir_all(&dir);
     let shot = dir.join("camera-lost.png");
     let rec = concat!(env!("CARGO_MANIFEST_DIR"), "/recordings/demo");
-    let mut child = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1600x900x24"])
-        .arg(env!("CARGO_BIN_EXE_fitstation"))
-        .args(["replay", rec, "--ui", "--no-person-model"])
+    let args: Vec<OsString> = ["replay", rec, "--ui", "--no-person-model"]
+        .iter()
+        .map(OsString::from)
         // The side camera goes at 0.9 s (after the first fit) and does not come back.
-        .args(["--inject", "drop-side@0.9:100000"])
-        .arg("--screenshot")
-        .arg(&shot)
-        .args(["--exit-after-frames", &FRAMES.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .process_group(0)
-        .spawn()
-        .expect("start xvfb-run");
-    let start = Instant::now();
-    while child.try_wait().ok().flatten().is_none() {
-        if start.elapsed() > TIMEOUT {
-            let _ = Command::new("kill")
-                .arg("-TERM")
-                .arg(format!("-{}", child.id()))
-                .status();
-            let _ = child.kill();
-            panic!("the window did not finish within {TIMEOUT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(200));
-    }
-    let out = child.wait_with_output().expect("window output");
+        .chain(["--inject", "drop-side@0.9:100000", "--screenshot"].map(OsString::from))
+        .chain([shot.clone().into_os_string()])
+        .chain(["--exit-after-frames".into(), FRAMES.to_string().into()])
+        .collect();
+    let out = run_in_xvfb(env!("CARGO_BIN_EXE_fitstation"), &args, TIMEOUT)
+        .unwrap_or_else(|e| panic!("{e}"));
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert!(out.status.success(), "replay --ui failed: {stderr}");
     assert!(stderr.contains("inject: drop-side from 0.90 s"), "{stderr}");

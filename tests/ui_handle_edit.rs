@@ -12,13 +12,12 @@
 //! environment variable `CI` is set, where it fails (as `ui_xvfb`).
 
 use serde_json::Value;
-use std::os::unix::process::CommandExt;
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod xvfb_common;
-use xvfb_common::have;
+use xvfb_common::{have, run_in_xvfb};
 
 /// Longest the window may take (software rendering on a loaded 2-core machine).
 const TIMEOUT: Duration = Duration::from_secs(600);
@@ -65,33 +64,20 @@ fn script(export_dir: &Path) -> Value {
 
 fn run_window(script_path: &Path, out: &Path) -> String {
     let rec = concat!(env!("CARGO_MANIFEST_DIR"), "/recordings/demo");
-    let mut child = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1600x900x24"])
-        .arg(env!("CARGO_BIN_EXE_fitstation"))
-        .args(["replay", rec, "--ui", "--operator", "--no-person-model"])
-        .arg("--ui-script")
-        .arg(script_path)
-        .arg("--ui-edits-out")
-        .arg(out)
-        .args(["--exit-after-frames", &MAX_FRAMES.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .process_group(0)
-        .spawn()
-        .expect("start xvfb-run");
-    let start = Instant::now();
-    while child.try_wait().ok().flatten().is_none() {
-        if start.elapsed() > TIMEOUT {
-            let _ = Command::new("kill")
-                .arg("-TERM")
-                .arg(format!("-{}", child.id()))
-                .status();
-            let _ = child.kill();
-            panic!("the window did not finish within {TIMEOUT:?}");
-        }
-        std::thread::sleep(Duration::from_millis(200));
-    }
-    let output = child.wait_with_output().expect("window output");
+    let args: Vec<OsString> = ["replay", rec, "--ui", "--operator", "--no-person-model"]
+        .iter()
+        .map(OsString::from)
+        .chain([
+            "--ui-script".into(),
+            script_path.as_os_str().to_owned(),
+            "--ui-edits-out".into(),
+            out.as_os_str().to_owned(),
+            "--exit-after-frames".into(),
+            MAX_FRAMES.to_string().into(),
+        ])
+        .collect();
+    let output = run_in_xvfb(env!("CARGO_BIN_EXE_fitstation"), &args, TIMEOUT)
+        .unwrap_or_else(|e| panic!("{e}"));
     let stderr = String::from_utf8_lossy(&output.stderr).to_string();
     assert!(output.status.success(), "replay --ui failed: {stderr}");
     stderr

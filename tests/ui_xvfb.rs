@@ -8,13 +8,12 @@
 //! environment variable `CI` is set, where it fails (CI must install xvfb,
 //! mesa-vulkan-drivers and libvulkan1).
 
-use std::os::unix::process::CommandExt;
+use std::ffi::OsString;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
+use std::time::Duration;
 
 mod xvfb_common;
-use xvfb_common::have;
+use xvfb_common::{have, run_in_xvfb};
 
 /// Screen frames before the screenshot.
 const FRAMES: u64 = 90;
@@ -54,37 +53,13 @@ fn luminance_std(px: &[[u8; 3]]) -> f64 {
 }
 
 fn run_window(shot: &Path, command: &[&str]) -> Result<(), String> {
-    let bin = env!("CARGO_BIN_EXE_fitstation");
-    let mut child = Command::new("xvfb-run")
-        .args(["-a", "-s", "-screen 0 1600x900x24", bin])
-        .args(command)
-        .arg("--screenshot")
-        .arg(shot)
-        .args(["--exit-after-frames", &FRAMES.to_string()])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        // Its own process group, so a hung run can be ended with Xvfb and the app.
-        .process_group(0)
-        .spawn()
-        .map_err(|e| format!("cannot start xvfb-run: {e}"))?;
-    let start = Instant::now();
-    loop {
-        match child.try_wait() {
-            Ok(Some(_)) => break,
-            Ok(None) if start.elapsed() > TIMEOUT => {
-                let _ = Command::new("kill")
-                    .arg("-TERM")
-                    .arg(format!("-{}", child.id()))
-                    .status();
-                let _ = child.kill();
-                let _ = child.wait();
-                return Err(format!("the window did not finish within {TIMEOUT:?}"));
-            }
-            Ok(None) => std::thread::sleep(Duration::from_millis(200)),
-            Err(e) => return Err(e.to_string()),
-        }
-    }
-    let out = child.wait_with_output().map_err(|e| e.to_string())?;
+    let args: Vec<OsString> = command
+        .iter()
+        .map(OsString::from)
+        .chain(["--screenshot".into(), shot.as_os_str().to_owned()])
+        .chain(["--exit-after-frames".into(), FRAMES.to_string().into()])
+        .collect();
+    let out = run_in_xvfb(env!("CARGO_BIN_EXE_fitstation"), &args, TIMEOUT)?;
     let stdout = String::from_utf8_lossy(&out.stdout);
     let stderr = String::from_utf8_lossy(&out.stderr);
     println!("{stdout}");

@@ -12,3 +12,42 @@ pub fn have(tool: &str) -> bool {
         .map(|s| s.success())
         .unwrap_or(false)
 }
+
+/// Runs the `fitstation` binary `bin` with `args` in a window under `xvfb-run` (a
+/// 1600x900 screen) and waits for it, at most `timeout`: a run still going then is ended
+/// with its Xvfb (the window runs in its own process group) and is an error. The output,
+/// whatever the exit status.
+#[allow(dead_code)] // not every window test uses it
+pub fn run_in_xvfb(
+    bin: &str,
+    args: &[std::ffi::OsString],
+    timeout: std::time::Duration,
+) -> Result<std::process::Output, String> {
+    use std::os::unix::process::CommandExt;
+    let mut child = Command::new("xvfb-run")
+        .args(["-a", "-s", "-screen 0 1600x900x24", bin])
+        .args(args)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .process_group(0)
+        .spawn()
+        .map_err(|e| format!("cannot start xvfb-run: {e}"))?;
+    let start = std::time::Instant::now();
+    loop {
+        match child.try_wait() {
+            Ok(Some(_)) => break,
+            Ok(None) if start.elapsed() > timeout => {
+                let _ = Command::new("kill")
+                    .arg("-TERM")
+                    .arg(format!("-{}", child.id()))
+                    .status();
+                let _ = child.kill();
+                let _ = child.wait();
+                return Err(format!("the window did not finish within {timeout:?}"));
+            }
+            Ok(None) => std::thread::sleep(std::time::Duration::from_millis(200)),
+            Err(e) => return Err(e.to_string()),
+        }
+    }
+    child.wait_with_output().map_err(|e| e.to_string())
+}
