@@ -470,7 +470,15 @@ impl Fitter {
                 &mut self.targets,
             );
             stats.targets = ts;
-            let total = s.controls.controls.len();
+            // Out of the controls a view could give a target: a side view that is not
+            // there (the front camera alone) has none to give.
+            let side_seen = !views[1].1.data.is_empty();
+            let total = s
+                .controls
+                .controls
+                .iter()
+                .filter(|c| side_seen || c.status.view() == crate::camera::View::Front)
+                .count();
             if ts.found * 4 < total {
                 return Err(FitError::TooFewTargets {
                     found: ts.found,
