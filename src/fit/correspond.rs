@@ -336,9 +336,9 @@ fn bearing(cam: &Camera, status: Status, p: DVec3) -> (f64, f64) {
 /// view, the other leg hides the edge only when it reaches further out.
 ///
 /// With `side_arms_seen` (the side view's arms located by the pose network, see
-/// [`super::sections::SideOccluder`]) the avatar's arms hide no edge of the trunk in the
-/// side view: the edge is searched and the arms seen in the picture decide whether it is
-/// theirs. The avatar's arm is only as good as the candidate's pose and depth: a trunk
+/// [`super::sections::SideOccluder`]) the avatar's arms hide no back edge of the trunk in
+/// the side view: the edge is searched and the arms seen in the picture decide whether it
+/// is theirs. The avatar's arm is only as good as the candidate's pose and depth: a trunk
 /// fitted too shallow has its own arm over its back edge and never sees the back.
 fn occluded(
     positions: &[DVec3],
@@ -363,7 +363,10 @@ fn occluded(
         }
         (hi >= lo).then_some((lo, hi))
     };
-    let trunk_in_side = c.part == Part::Torso && c.status.view() == View::Side;
+    // The back only: in an A-pose the forearms and hands hang before the trunk's front,
+    // where the avatar's arm still says which front edges may be theirs (the waist of
+    // the demo flickered by 30 mm a frame without it); behind the back an arm is rare.
+    let trunk_in_side = c.part == Part::Torso && c.status == Status::Back;
     let parts = set.slice_occluder_parts.get(slice);
     for (g, group) in set
         .slice_occluders
