@@ -28,16 +28,35 @@ fn tmp(name: &str) -> PathBuf {
     d
 }
 
-/// Renders the camouflaged subject's short recording into `dir`.
-fn camouflage_recording(dir: &Path) -> PathBuf {
-    let rec = dir.join("camo");
-    let mut cfg = set_member(FIRST_SEED, MEMBER, SET_COUNT);
-    cfg.clothing = Clothing::Camouflage;
+/// Renders member `member` of the set `synth-set --first-seed FIRST --count COUNT` (in
+/// `clothing`) as a short recording `dir/name`: ten empty frames, then
+/// [`SUBJECT_FRAMES`] with the subject.
+fn member_recording(
+    dir: &Path,
+    name: &str,
+    (first_seed, member, count): (u64, usize, usize),
+    clothing: Option<Clothing>,
+) -> PathBuf {
+    let rec = dir.join(name);
+    let mut cfg = set_member(first_seed, member, count);
+    if let Some(c) = clothing {
+        cfg.clothing = c;
+    }
     cfg.empty_frames = 10;
     cfg.subject_frames = SUBJECT_FRAMES;
     cfg.format = FrameFormat::Png;
-    render_recording(&cfg, &rec).expect("render the camouflage recording");
+    render_recording(&cfg, &rec).unwrap_or_else(|e| panic!("render {name}: {e}"));
     rec
+}
+
+/// Renders the camouflaged subject's short recording into `dir`.
+fn camouflage_recording(dir: &Path) -> PathBuf {
+    member_recording(
+        dir,
+        "camo",
+        (FIRST_SEED, MEMBER, SET_COUNT),
+        Some(Clothing::Camouflage),
+    )
 }
 
 /// What one replay gave: frames fitted, mean mask IoU per view over the subject frames,
@@ -154,12 +173,7 @@ fn the_person_mask_restores_clothing_in_the_backdrops_colour() {
 #[test]
 fn the_person_mask_runs_for_a_subject_in_pieces_seen_by_the_front_camera_alone() {
     let dir = tmp("pieces-front");
-    let rec = dir.join("white_shirt");
-    let mut cfg = set_member(41300, 1, SET_COUNT);
-    cfg.empty_frames = 10;
-    cfg.subject_frames = SUBJECT_FRAMES;
-    cfg.format = FrameFormat::Png;
-    render_recording(&cfg, &rec).expect("render the white-shirt recording");
+    let rec = member_recording(&dir, "white_shirt", (41300, 1, SET_COUNT), None);
     let front = replay(&rec, true, ViewSet::Front, &dir.join("masks"));
     println!(
         "front camera alone: fitted {}, IoU front {:.3}, chest {:?} mm; messages {}",
@@ -182,12 +196,7 @@ fn the_person_mask_runs_for_a_subject_in_pieces_seen_by_the_front_camera_alone()
 #[test]
 fn the_head_above_a_shirt_of_the_walls_colour_stays_with_the_body() {
     let dir = tmp("pieces-head");
-    let rec = dir.join("green_shirt");
-    let mut cfg = set_member(43000, 7, 24);
-    cfg.empty_frames = 10;
-    cfg.subject_frames = SUBJECT_FRAMES;
-    cfg.format = FrameFormat::Png;
-    render_recording(&cfg, &rec).expect("render the green-shirt recording");
+    let rec = member_recording(&dir, "green_shirt", (43000, 7, 24), None);
     let both = replay(&rec, true, ViewSet::Both, &dir.join("masks"));
     let truth = load_truth(&truth_dir(&rec)).expect("truth");
     let stature = both.report["measurements_mm"]["stature"]
@@ -214,13 +223,12 @@ fn the_head_above_a_shirt_of_the_walls_colour_stays_with_the_body() {
 #[test]
 fn the_front_camera_alone_is_asked_only_for_its_own_correspondences() {
     let dir = tmp("camo-front");
-    let rec = dir.join("camo");
-    let mut cfg = set_member(44300, 7, SET_COUNT);
-    cfg.clothing = Clothing::Camouflage;
-    cfg.empty_frames = 10;
-    cfg.subject_frames = SUBJECT_FRAMES;
-    cfg.format = FrameFormat::Png;
-    render_recording(&cfg, &rec).expect("render the camouflage recording");
+    let rec = member_recording(
+        &dir,
+        "camo",
+        (44300, 7, SET_COUNT),
+        Some(Clothing::Camouflage),
+    );
     let front = replay(&rec, true, ViewSet::Front, &dir.join("masks"));
     println!(
         "camouflage, front camera alone: fitted {}, IoU front {:.3}, chest {:?} mm; messages {}",

@@ -33,17 +33,8 @@ import sys
 import numpy as np
 from scipy.spatial import ConvexHull
 
-
-def load_obj(path):
-    verts, tris = [], []
-    with open(path) as f:
-        for line in f:
-            if line.startswith("v "):
-                verts.append([float(x) for x in line.split()[1:4]])
-            elif line.startswith("f "):
-                idx = [int(t.split("/")[0]) - 1 for t in line.split()[1:]]
-                tris.extend([idx[0], idx[k], idx[k + 1]] for k in range(1, len(idx) - 1))
-    return np.array(verts), np.array(tris)
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+from measure_spec import read_obj as load_obj  # noqa: E402
 
 
 def loops(verts, tris, y):

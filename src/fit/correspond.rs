@@ -173,9 +173,8 @@ pub struct ControlSet {
     pub slice_members: Vec<Vec<u32>>,
     /// Per slice: vertices of each other part (arms, torso, legs; not the head) in the same
     /// height band, whose silhouettes can merge with the slice's part (see [`occluded`]).
-    pub slice_occluders: Vec<Vec<Vec<u32>>>,
-    /// The part of each group of [`Self::slice_occluders`].
-    pub slice_occluder_parts: Vec<Vec<Part>>,
+    /// Each group with its part.
+    pub slice_occluders: Vec<Vec<(Part, Vec<u32>)>>,
     /// Per leg slice: the other leg's vertices in the same band (in the side view the two
     /// legs overlap; only the one reaching further out owns the silhouette's edge).
     pub slice_rivals: Vec<Vec<u32>>,
@@ -256,16 +255,13 @@ pub fn select_controls(
             }
             let slice = set.slice_members.len() as u32;
             let mut occluders = Vec::new();
-            let mut occluder_parts = Vec::new();
             for other in Part::ALL {
                 let vs = &all_bands[part_index(other)][k];
                 if other != part && other != Part::Head && Some(other) != rival && !vs.is_empty() {
-                    occluders.push(vs.clone());
-                    occluder_parts.push(other);
+                    occluders.push((other, vs.clone()));
                 }
             }
             set.slice_occluders.push(occluders);
-            set.slice_occluder_parts.push(occluder_parts);
             set.slice_rivals.push(
                 rival
                     .map(|r| all_bands[part_index(r)][k].clone())
@@ -367,17 +363,13 @@ fn occluded(
     // where the avatar's arm still says which front edges may be theirs (the waist of
     // the demo flickered by 30 mm a frame without it); behind the back an arm is rare.
     let trunk_in_side = c.part == Part::Torso && c.status == Status::Back;
-    let parts = set.slice_occluder_parts.get(slice);
-    for (g, group) in set
+    for (part, group) in set
         .slice_occluders
         .get(slice)
         .map(|g| g.as_slice())
         .unwrap_or(&[])
-        .iter()
-        .enumerate()
     {
-        let arm = parts.and_then(|p| p.get(g)).is_some_and(|p| p.is_arm());
-        if side_arms_seen && trunk_in_side && arm {
+        if side_arms_seen && trunk_in_side && part.is_arm() {
             continue;
         }
         if let Some((lo, hi)) = near(group) {
@@ -637,8 +629,7 @@ mod tests {
                 slice: 0,
             }],
             slice_members: vec![vec![0]],
-            slice_occluders: vec![vec![vec![1, 2]]],
-            slice_occluder_parts: vec![vec![Part::LeftArm]],
+            slice_occluders: vec![vec![(Part::LeftArm, vec![1, 2])]],
             slice_rivals: vec![Vec::new()],
             slice_part: vec![Part::Torso],
             slice_band: vec![0],
@@ -649,7 +640,7 @@ mod tests {
         assert!(!occluded(&positions, &set, c, &calib.side, true));
         // A leg is no arm: it still hides the edge.
         let mut legs = set.clone();
-        legs.slice_occluder_parts = vec![vec![Part::LeftLeg]];
+        legs.slice_occluders = vec![vec![(Part::LeftLeg, vec![1, 2])]];
         assert!(occluded(&positions, &legs, c, &calib.side, true));
         // The front view's controls keep the avatar's arms as occluders.
         let front = Control {

@@ -559,11 +559,16 @@ impl Fitter {
         plan.evidence_at(&self.section_scratch, region, y, half_window_m)
     }
 
-    /// Breadth and depth (x and z extents, metres) of the current avatar's trunk at height
-    /// `y`: its torso's (and legs') vertices only, not its arms, whatever touches them.
-    pub fn trunk_extents_at(&self, y: f64) -> Option<(f64, f64)> {
-        let s = self.subject.as_ref()?;
-        shape::trunk_extents(&s.positions, &self.edges, &self.template_labels, y)
+    /// Breadth and depth (x and z extents, metres) of the current avatar's trunk at each
+    /// height of `ys`: its torso's (and legs') vertices only, not its arms, whatever
+    /// touches them. All None without a subject.
+    pub fn trunk_extents_at(&self, ys: &[f64]) -> Vec<Option<(f64, f64)>> {
+        match self.subject.as_ref() {
+            Some(s) => {
+                shape::trunk_extents_at(&s.positions, &self.edges, &self.template_labels, ys)
+            }
+            None => vec![None; ys.len()],
+        }
     }
 
     /// The current avatar as a mesh (template triangles).

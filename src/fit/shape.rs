@@ -178,11 +178,23 @@ pub fn trunk_extents(
     labels: &[Part],
     y: f64,
 ) -> Option<(f64, f64)> {
-    let (lo, hi) = section_extents(positions, edges, labels, &[y], is_trunk)
+    trunk_extents_at(positions, edges, labels, &[y])
         .first()
         .copied()
-        .flatten()?;
-    (hi.x > lo.x).then(|| (hi.x - lo.x, hi.z - lo.z))
+        .flatten()
+}
+
+/// [`trunk_extents`] at each of `ys`, in one pass over the edges.
+pub fn trunk_extents_at(
+    positions: &[DVec3],
+    edges: &[[u32; 2]],
+    labels: &[Part],
+    ys: &[f64],
+) -> Vec<Option<(f64, f64)>> {
+    section_extents(positions, edges, labels, ys, is_trunk)
+        .into_iter()
+        .map(|e| e.and_then(|(lo, hi)| (hi.x > lo.x).then(|| (hi.x - lo.x, hi.z - lo.z))))
+        .collect()
 }
 
 /// Where the silhouette is left when walking from `start` along `dir` (station frame),

@@ -605,6 +605,9 @@ impl StationProcessor {
     ) -> Result<(), String> {
         let m = crate::measure::measure(avatar).map_err(|e| e.to_string())?;
         let map = m.to_report_map();
+        // The avatar's own trunk at the torso girths' levels, in one pass over its edges.
+        let torso_levels = [m.levels.chest_m, m.levels.waist_m, m.levels.hip_m];
+        let trunk = self.fitter.trunk_extents_at(&torso_levels);
         for (k, (s, sigma)) in MEASUREMENT_KEYS
             .iter()
             .zip(self.smoothed.iter_mut().zip(self.sigmas.iter_mut()))
@@ -613,7 +616,8 @@ impl StationProcessor {
                 continue;
             };
             s.push(v);
-            let evidence = uncertainty::level_of(k, &m).and_then(|(region, y)| {
+            let level = uncertainty::level_of(k, &m);
+            let evidence = level.and_then(|(region, y)| {
                 self.fitter
                     .level_evidence(region, y, uncertainty::LEVEL_HALF_WINDOW_M)
             });
@@ -626,9 +630,12 @@ impl StationProcessor {
                 frame_sigma =
                     frame_sigma.hypot(uncertainty::hip_level_sigma_mm(&m, self.side_pixel_m));
             }
-            if let Some((crate::fit::sections::Region::Torso, y)) = uncertainty::level_of(k, &m) {
-                let excess = uncertainty::loop_excess_sigma_mm(v, self.fitter.trunk_extents_at(y));
-                frame_sigma = frame_sigma.hypot(excess);
+            if let Some((crate::fit::sections::Region::Torso, y)) = level {
+                let extents = torso_levels
+                    .iter()
+                    .position(|&t| t == y)
+                    .and_then(|i| trunk[i]);
+                frame_sigma = frame_sigma.hypot(uncertainty::loop_excess_sigma_mm(v, extents));
             }
             if crate::fit::debug_enabled() {
                 eprintln!("evidence {k}: {evidence:?} -> {frame_sigma:.1}");
