@@ -411,6 +411,16 @@ fn bad_inputs_are_errors_not_panics() {
         d.solve(&[DVec3::ZERO; 2], &mut pos[..3]),
         Err(DeformError::PositionCount { .. })
     ));
+    // Targets a kilometre apart on a 20 cm sphere: a decode that moves vertices by
+    // hundreds of metres a step is stopped as diverged, not iterated on.
+    let mut pos = m.positions.clone();
+    assert!(matches!(
+        d.solve(
+            &[DVec3::new(1000.0, 0.0, 0.0), DVec3::new(-1000.0, 0.0, 0.0)],
+            &mut pos
+        ),
+        Err(DeformError::Diverged(_))
+    ));
     assert!(MvcDeformer::new(
         &TriMesh::default(),
         DecoderKind::PaperIterative,

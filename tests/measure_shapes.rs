@@ -543,6 +543,21 @@ fn not_a_standing_body_is_a_clear_error() {
     nan.positions[3].x = f64::NAN;
     assert!(matches!(measure(&nan), Err(MeasureError::InvalidMesh(_))));
     assert!(girth_at(&TriMesh::default(), 0.5, LoopSelector::Whole).is_none());
+    // Not in metres, or one vertex thrown far off (a fit that blew up): refused at once,
+    // not searched over millions of 2 mm grid steps.
+    let body = stick_body(true, 0.04).mesh;
+    assert!(measure(&body).is_ok());
+    let mut mm = body.clone();
+    mm.positions.iter_mut().for_each(|p| *p *= 1000.0);
+    assert!(matches!(measure(&mm), Err(MeasureError::InvalidMesh(_))));
+    let mut thrown = body;
+    let last = thrown.triangles[0][0] as usize;
+    thrown.positions[last].y = 1.0e12;
+    let err = measure(&thrown).expect_err("a vertex 1e12 m up");
+    assert!(
+        matches!(&err, MeasureError::InvalidMesh(why) if why.contains("tall")),
+        "{err}"
+    );
 }
 
 #[test]

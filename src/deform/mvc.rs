@@ -17,6 +17,11 @@ use super::{
 use crate::mesh::TriMesh;
 use glam::DVec3;
 
+/// A decode step that moves a vertex further than this (metres; a body is two metres
+/// tall) has diverged: the solve stops with [`DeformError::Diverged`] instead of iterating
+/// on towards infinity.
+const DIVERGED_MOVE_M: f64 = 5.0;
+
 /// Owns the encoding, the factorisation and the scratch buffers; reused frame after frame.
 pub struct MvcDeformer {
     encoding: MeanValueEncoding,
@@ -302,7 +307,7 @@ impl MvcDeformer {
                 }
                 report.iterations = 1;
                 report.max_move_m = moved;
-                if !moved.is_finite() {
+                if !(moved <= DIVERGED_MOVE_M) {
                     return Err(DeformError::Diverged(1));
                 }
                 report.converged = monitor.update(moved);
@@ -323,7 +328,7 @@ impl MvcDeformer {
             };
             report.iterations = it + 1;
             report.max_move_m = max_move;
-            if !max_move.is_finite() {
+            if !(max_move <= DIVERGED_MOVE_M) {
                 return Err(DeformError::Diverged(it + 1));
             }
             if monitor.update(max_move) {

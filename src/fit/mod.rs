@@ -183,6 +183,44 @@ struct SubjectState {
     positions: Vec<DVec3>,
 }
 
+/// How far beyond the candidate's bounding box (each side, metres) a fitted avatar may
+/// reach before the solve is taken to have diverged: section scales stay within 1.25
+/// and the arms' pose moves them by tens of centimetres at most.
+const MAX_REACH_BEYOND_CANDIDATE_M: f64 = 0.3;
+
+impl SubjectState {
+    /// Why the current avatar is not a body (see [`diverged`]), or None.
+    fn implausible(&self) -> Option<String> {
+        diverged(&self.positions, &self.rest.positions)
+    }
+}
+
+/// Why `avatar` is not a deformation of `candidate` (a non-finite vertex, or one far
+/// outside the candidate's box: a solve that diverged), or None.
+fn diverged(avatar: &[DVec3], candidate: &[DVec3]) -> Option<String> {
+    let bounds = |ps: &[DVec3]| {
+        ps.iter().fold(
+            (DVec3::splat(f64::MAX), DVec3::splat(f64::MIN)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        )
+    };
+    if avatar.iter().any(|p| !p.is_finite()) {
+        return Some("the deformation diverged (a vertex is not finite)".into());
+    }
+    let (rlo, rhi) = bounds(candidate);
+    let (lo, hi) = bounds(avatar);
+    let m = DVec3::splat(MAX_REACH_BEYOND_CANDIDATE_M);
+    if lo.cmplt(rlo - m).any() || hi.cmpgt(rhi + m).any() {
+        let (a, c) = (hi - lo, rhi - rlo);
+        return Some(format!(
+            "the deformation diverged (the avatar spans {:.2} x {:.2} x {:.2} m, its \
+             candidate {:.2} x {:.2} x {:.2} m)",
+            a.x, a.y, a.z, c.x, c.y, c.z
+        ));
+    }
+    None
+}
+
 /// The fitter: owns the library, its descriptors and the subject's state and scratch.
 pub struct Fitter {
     library: Arc<ShapeLibrary>,
@@ -202,6 +240,8 @@ pub struct Fitter {
     /// The side view's limb capsules of the current call (see [`Observation`]).
     side_occluders: [Option<sections::SideOccluder>; sections::MAX_SIDE_OCCLUDERS],
     vertex_targets: Vec<Option<DVec3>>,
+    /// The avatar before a warm refit (restored when the refit diverges).
+    backup: Vec<DVec3>,
     /// Rasterised silhouette of the candidate (first fit only).
     raster: Vec<u8>,
     /// The library bodies' mean depths relative to their toes (a fit without the side
@@ -251,6 +291,7 @@ impl Fitter {
             section_scratch: Default::default(),
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
             vertex_targets: Vec::new(),
+            backup: Vec::new(),
             raster: Vec::new(),
             depth_offsets,
         })
@@ -377,8 +418,23 @@ impl Fitter {
                     );
                 }
             }
+            if let Some(why) = self.subject.as_ref().and_then(SubjectState::implausible) {
+                // Nothing to go back to: the next frame chooses a body afresh.
+                self.subject = None;
+                return Err(FitError::Deform(why));
+            }
         } else {
+            if let Some(s) = &self.subject {
+                self.backup.clone_from(&s.positions);
+            }
             self.rounds(views, true, 1, &mut stats)?;
+            if let Some(s) = self.subject.as_mut() {
+                if let Some(why) = s.implausible() {
+                    // Keep the last good avatar on screen and in the measurements.
+                    s.positions.clone_from(&self.backup);
+                    return Err(FitError::Deform(why));
+                }
+            }
         }
         let Some(s) = self.subject.as_mut() else {
             return Err(FitError::NoTorso);
@@ -821,6 +877,33 @@ pub(crate) fn solve_small<const N: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A diverged solve is told from a deformed body: the candidate moved and scaled
+    /// within its box passes, a vertex thrown far off or not finite does not.
+    #[test]
+    fn a_diverged_avatar_is_told_from_a_deformed_one() {
+        let candidate: Vec<DVec3> = (0..200)
+            .map(|i| {
+                let t = i as f64 / 199.0;
+                DVec3::new(0.2 * (7.0 * t).sin(), 1.75 * t, 0.12 * (5.0 * t).cos())
+            })
+            .collect();
+        let deformed: Vec<DVec3> = candidate
+            .iter()
+            .map(|p| DVec3::new(1.2 * p.x + 0.05, p.y * 1.05, 1.2 * p.z - 0.03))
+            .collect();
+        assert_eq!(diverged(&deformed, &candidate), None);
+        let mut thrown = deformed.clone();
+        thrown[17].y = 4.0e13;
+        let why = diverged(&thrown, &candidate).expect("a vertex 4e13 m up");
+        assert!(why.contains("diverged"), "{why}");
+        let mut wide = deformed.clone();
+        wide[3].x -= 0.8;
+        assert!(diverged(&wide, &candidate).is_some());
+        let mut nan = deformed;
+        nan[5].z = f64::NAN;
+        assert!(diverged(&nan, &candidate).is_some());
+    }
 
     /// The macro-parameter refinement recovers a library body from its own descriptor,
     /// starting from the average adult: the descriptor's residual ends under a millimetre

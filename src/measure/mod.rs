@@ -92,6 +92,10 @@ pub const THIGH_BAND_BELOW_CROTCH_M: (f64, f64) = (0.01, 0.08);
 pub const GRID_STEP_M: f64 = 0.002;
 /// Step of the refinement grid and tolerance of the level bisections, metres.
 pub const FINE_STEP_M: f64 = 0.000_25;
+/// Heights of a mesh measured as a standing person, metres (a mesh outside is refused
+/// with [`MeasureError::InvalidMesh`]: millimetres, or a fit that blew up).
+pub const MIN_STATURE_M: f64 = 0.5;
+pub const MAX_STATURE_M: f64 = 3.0;
 /// Fine steps on each side of the best grid point that a refinement visits (one grid
 /// step minus one fine step: the grid points themselves are already known).
 const FINE_STEPS_PER_SIDE: i32 = 7;
@@ -384,6 +388,15 @@ impl Measurer {
                 lo = lo.min(y);
                 hi = hi.max(y);
             }
+        }
+        // A standing adult in metres. Anything else (a mesh in millimetres, a fit that
+        // blew up) would make the height searches walk millions of grid steps.
+        if !(MIN_STATURE_M..=MAX_STATURE_M).contains(&(hi - lo)) {
+            return Err(MeasureError::InvalidMesh(format!(
+                "the body is {:.3} m tall: not a standing person in metres \
+                 ({MIN_STATURE_M}-{MAX_STATURE_M} m)",
+                hi - lo
+            )));
         }
         self.y_min = lo;
         self.y_max = hi;
