@@ -108,7 +108,23 @@ fn progress_prints_plain_lines_when_stderr_is_not_a_terminal() {
         "carriage return in piped replay progress: {err:?}"
     );
     assert!(err.lines().any(|l| l.starts_with("frame")), "{err}");
-    let o = run_in(&d, &["eval", demo, demo]);
+    // The station masks `eval` scores go to a scratch folder it removes.
+    let tmp = d.join("tmp");
+    std::fs::create_dir_all(&tmp).expect("temp folder");
+    let o = Command::new(exe())
+        .current_dir(&d)
+        .args(["eval", demo, demo])
+        .env_remove("RUST_BACKTRACE")
+        .env("FITSTATION_CACHE", d.join("cache"))
+        .env("TMPDIR", &tmp)
+        .output()
+        .expect("run fitstation");
+    let left: Vec<_> = std::fs::read_dir(&tmp)
+        .expect("temp folder")
+        .flatten()
+        .map(|e| e.file_name())
+        .collect();
+    assert!(left.is_empty(), "eval left {left:?} in its temp folder");
     let err = text(&o.stderr);
     assert!(
         !err.contains('\r'),

@@ -40,10 +40,28 @@ fn eval_masks_dir(rec: &Path) -> PathBuf {
             .map(|n| n.to_string_lossy().into_owned())
             .unwrap_or_default()
     };
-    std::env::temp_dir()
-        .join(format!("fitstation-eval-masks-{}", std::process::id()))
+    eval_masks_root()
         .join(name(rec.parent()))
         .join(name(Some(rec)))
+}
+
+/// This process's scratch folder of station masks (removed when `eval` ends).
+fn eval_masks_root() -> PathBuf {
+    std::env::temp_dir().join(format!("fitstation-eval-masks-{}", std::process::id()))
+}
+
+/// Removes the masks' scratch folder when dropped: `eval` leaves nothing behind, on
+/// success, error or panic.
+struct ScratchGuard(PathBuf);
+
+impl Drop for ScratchGuard {
+    fn drop(&mut self) {
+        if self.0.exists() {
+            if let Err(e) = std::fs::remove_dir_all(&self.0) {
+                eprintln!("cannot remove the scratch folder {}: {e}", self.0.display());
+            }
+        }
+    }
 }
 
 /// Runs `fitstation eval`.
@@ -74,6 +92,7 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
         };
         return crate::eval::run_with(&cmd.eval, &mut source);
     }
+    let _scratch = ScratchGuard(eval_masks_root());
     let mut opts = StationOptions::default();
     opts.fit.variant = cmd.correspondence;
     opts.person_model = !cmd.no_person_model;
