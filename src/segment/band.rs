@@ -2,7 +2,7 @@
 //! upsampled, then every pixel within one coarse cell of its border re-tested against
 //! the model and settled by a 3x3 majority among those pixels.
 
-use super::{prefetch, BackgroundModel, BAND_BG, BAND_FG, BAND_NONE, BRIDGED, COARSE};
+use super::{prefetch, BackgroundModel, BAND_BG, BAND_FG, BAND_NONE, BRIDGED, COARSE, JOINED};
 use crate::imgproc::{self, Mask, MASK_ON};
 
 impl BackgroundModel {
@@ -109,7 +109,8 @@ impl BackgroundModel {
                     if x < w && y < h {
                         let i = y * w + x;
                         let p = [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]];
-                        self.band_state[i] = if self.is_foreground(i, p)
+                        self.band_state[i] = if label == JOINED
+                            || self.is_foreground(i, p)
                             || (bridged && self.is_changed(i, p))
                             || (fused_ratio2.is_finite() && self.ratio2(i, p) >= fused_ratio2)
                         {

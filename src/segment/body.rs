@@ -3,7 +3,7 @@
 //! backdrop seen through a gap, and its box and border contacts.
 
 use super::{BackgroundModel, BorderTouch, PixelBox, SegmentStats, COARSE, OPEN_HOLE_FRACTION};
-use super::{OPEN_HOLE_MIN_CELLS, WEAK};
+use super::{JOINED, OPEN_HOLE_MIN_CELLS, WEAK};
 use crate::imgproc::{self, Mask};
 
 impl BackgroundModel {
@@ -109,9 +109,12 @@ impl BackgroundModel {
             .count() as u32
     }
 
-    /// Joins the pieces to the body in the coarse body mask: each piece's cells, and the
-    /// cells between it and the body (its columns, the rows between the two boxes and
-    /// one more each way) where the prior says person.
+    /// Joins the pieces to the body in the coarse body mask: each piece's cells, and in
+    /// each of its columns the cells from the piece toward the body (down from a piece
+    /// above it, up from one below) while the prior says person, until the body is met.
+    /// The cells walked get [`JOINED`] so that the full-resolution border test keeps them
+    /// (their colour is the backdrop's: that is why they were lost), and the piece stays
+    /// one outline with the body.
     fn join_pieces(&mut self, body: usize) {
         let Some(prior) = self.prior.as_ref() else {
             return;
@@ -128,19 +131,55 @@ impl BackgroundModel {
                 }
             }
             let k = comps[c];
-            let (lo, hi) = if k.max_y <= b.min_y {
-                (k.max_y, b.min_y)
-            } else if k.min_y >= b.max_y {
-                (b.max_y, k.min_y)
+            // Which way the body lies: a piece above it walks down, one below walks up;
+            // side by side they are joined by the rows they share, if at all.
+            let down = if k.min_y < b.min_y && k.max_y < b.max_y {
+                true
+            } else if k.max_y > b.max_y && k.min_y > b.min_y {
+                false
             } else {
-                continue; // side by side: joined by the rows they share, if at all
+                continue;
             };
-            let rows = lo.saturating_sub(1) as usize..((hi + 1) as usize).min(ch);
-            for y in rows {
-                for x in k.min_x as usize..(k.max_x as usize).min(cw) {
-                    if prior.at_cell(x, y) >= PIECE_PRIOR_LEVEL {
-                        self.coarse_body[y * cw + x] = imgproc::MASK_ON;
+            let reach = ((b.max_y - b.min_y) as usize / 2).max(1);
+            let face = ((k.max_y - k.min_y) as usize / PIECE_FACE_DIV).max(2);
+            for x in k.min_x as usize..(k.max_x as usize).min(cw) {
+                // The piece's cell nearest the body in this column.
+                let rows = k.min_y as usize..(k.max_y as usize + 1).min(ch);
+                let on = |y: &usize| self.coarse_body[y * cw + x] == imgproc::MASK_ON;
+                let start = if down {
+                    rows.clone().rev().find(on)
+                } else {
+                    rows.clone().find(on)
+                };
+                // Only from the piece's face toward the body: a column whose nearest
+                // cell lies deep in the piece (the gap between two legs) does not walk.
+                let Some(start) = start.filter(|&y| {
+                    let depth = if down {
+                        k.max_y as usize - y
+                    } else {
+                        y - k.min_y as usize
+                    };
+                    depth <= face
+                }) else {
+                    continue;
+                };
+                for step in 1..=reach {
+                    let y = if down {
+                        start + step
+                    } else {
+                        match start.checked_sub(step) {
+                            Some(y) => y,
+                            None => break,
+                        }
+                    };
+                    if y >= ch || self.coarse_body[y * cw + x] == imgproc::MASK_ON {
+                        break;
                     }
+                    if prior.at_cell(x, y) < PIECE_PRIOR_LEVEL {
+                        break;
+                    }
+                    self.coarse_body[y * cw + x] = imgproc::MASK_ON;
+                    self.coarse[y * cw + x] = JOINED;
                 }
             }
         }
@@ -222,6 +261,9 @@ pub(super) fn border_touch(mask: &Mask) -> BorderTouch {
 
 /// A piece of the person is at least this fraction of a person-sized component.
 const PIECE_AREA_DIV: u64 = 8;
+/// A piece walks toward the body from the cells within this fraction of its height of
+/// its face toward the body ([`BackgroundModel::join_pieces`]).
+const PIECE_FACE_DIV: usize = 8;
 /// ... at most this fraction of the body's height away from it.
 const PIECE_GAP_DIV: u32 = 8;
 /// ... with at least this share of its cells at the prior's [`PIECE_PRIOR_LEVEL`].

@@ -488,6 +488,9 @@ impl ModelPlane {
 /// [`crate::imgproc::MASK_ON`], unchanged 0.
 const WEAK: u8 = 2;
 const BRIDGED: u8 = 253; // odd: the majority filter counts `v & 1`
+/// A cell joining a piece of the person to the body where the prior says person
+/// ([`BackgroundModel::join_pieces`]): kept at full resolution whatever its colour.
+const JOINED: u8 = 249;
 /// Holes of fewer coarse cells are always filled (noise inside the body).
 const OPEN_HOLE_MIN_CELLS: u64 = 8;
 /// A hole stays open when at least this fraction of its cells is background evidence.
