@@ -142,44 +142,40 @@ impl BackgroundModel {
             };
             let reach = ((b.max_y - b.min_y) as usize / 2).max(1);
             let face = ((k.max_y - k.min_y) as usize / PIECE_FACE_DIV).max(2);
+            let rows = k.min_y as usize..(k.max_y as usize + 1).min(ch);
+            // One row toward the body (up from row 0 wraps past `ch`: the walk ends).
+            let toward = |y: usize| if down { y + 1 } else { y.wrapping_sub(1) };
             for x in k.min_x as usize..(k.max_x as usize).min(cw) {
-                // The piece's cell nearest the body in this column.
-                let rows = k.min_y as usize..(k.max_y as usize + 1).min(ch);
+                // The piece's cell nearest the body in this column, if it lies on the
+                // piece's face toward the body (not deep in it: the gap between two legs).
                 let on = |y: &usize| self.coarse_body[y * cw + x] == imgproc::MASK_ON;
                 let start = if down {
                     rows.clone().rev().find(on)
                 } else {
                     rows.clone().find(on)
                 };
-                // Only from the piece's face toward the body: a column whose nearest
-                // cell lies deep in the piece (the gap between two legs) does not walk.
-                let Some(start) = start.filter(|&y| {
-                    let depth = if down {
-                        k.max_y as usize - y
-                    } else {
-                        y - k.min_y as usize
-                    };
-                    depth <= face
-                }) else {
-                    continue;
+                let Some(mut y) = start else { continue };
+                let depth = if down {
+                    k.max_y as usize - y
+                } else {
+                    y - k.min_y as usize
                 };
-                for step in 1..=reach {
-                    let y = if down {
-                        start + step
-                    } else {
-                        match start.checked_sub(step) {
-                            Some(y) => y,
-                            None => break,
-                        }
-                    };
-                    if y >= ch || self.coarse_body[y * cw + x] == imgproc::MASK_ON {
+                if depth > face {
+                    continue;
+                }
+                for _ in 0..reach {
+                    y = toward(y);
+                    if y >= ch {
                         break;
                     }
-                    if prior.at_cell(x, y) < PIECE_PRIOR_LEVEL {
+                    let i = y * cw + x;
+                    if self.coarse_body[i] == imgproc::MASK_ON
+                        || prior.at_cell(x, y) < PIECE_PRIOR_LEVEL
+                    {
                         break;
                     }
-                    self.coarse_body[y * cw + x] = imgproc::MASK_ON;
-                    self.coarse[y * cw + x] = JOINED;
+                    self.coarse_body[i] = imgproc::MASK_ON;
+                    self.coarse[i] = JOINED;
                 }
             }
         }
