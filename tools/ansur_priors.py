@@ -89,3 +89,43 @@ for name, breadth, depth in [
 # girth sd / (pi/2).
 tg = resid_sd(t, col("hipbreadth"), stature)
 print(f"{'thigh':8} {tg / (np.pi / 2):20.1f}   (thigh girth sd given hip breadth and stature, {tg:.1f} mm, over pi/2)")
+print()
+
+
+def ellipse_perimeter(b, d):
+    a, c = b / 2.0, d / 2.0
+    return np.pi * (3.0 * (a + c) - np.sqrt((3.0 * a + c) * (a + 3.0 * c)))
+
+
+# The section's fullness: circumference over the perimeter of the ellipse with the same
+# breadth and depth (fit/section_prior.rs gives the waist band this median). ANSUR's chest
+# breadth and depth are taken at the nipples with calipers and do not match a section's
+# extents (depth/breadth 0.8-1.0 here, about 0.75 in a body's section): chest is printed
+# for completeness, not used.
+print(f"{'girth':8} {'fullness: median':>17} {'p25':>6} {'p75':>6} {'p5':>6} {'p95':>6}   (circumference / ellipse perimeter of breadth, depth)")
+for name, circ, breadth, depth in [
+    ("chest", "chestcircumference", "chestbreadth", "chestdepth"),
+    ("waist", "waistcircumference", "waistbreadth", "waistdepth"),
+    ("hip", "buttockcircumference", "hipbreadth", "buttockdepth"),
+]:
+    r = col(circ) / ellipse_perimeter(col(breadth), col(depth))
+    q = np.percentile(r, [50, 25, 75, 5, 95])
+    print(f"{name:8} {q[0]:17.3f} {q[1]:6.3f} {q[2]:6.3f} {q[3]:6.3f} {q[4]:6.3f}")
+print()
+
+# What two silhouettes can say at best: each girth predicted, on half of ANSUR II, from
+# everything a front and a side view measure (the three breadths and depths, their
+# products, stature, shoulder breadths) and sex, checked on the other half. The mean
+# absolute error includes ANSUR's own measuring noise.
+seen = [col(k) for k in ("chestbreadth", "chestdepth", "waistbreadth", "waistdepth", "hipbreadth", "buttockdepth")]
+extra = [stature, col("bideltoidbreadth"), col("biacromialbreadth"), sex]
+x = np.column_stack([np.ones_like(stature)] + seen + extra
+                    + [a * b / 1000.0 for i, a in enumerate(seen) for b in seen[i:]])
+half = np.random.default_rng(0).permutation(len(stature))
+fit_rows, test_rows = half[: len(half) // 2], half[len(half) // 2:]
+print("girth from everything two views see (fit on half of ANSUR II, tested on the other half)")
+for name, circ in [("chest", "chestcircumference"), ("waist", "waistcircumference"), ("hip", "buttockcircumference")]:
+    y = col(circ)
+    coef, *_ = np.linalg.lstsq(x[fit_rows], y[fit_rows], rcond=None)
+    e = np.abs(y[test_rows] - x[test_rows] @ coef)
+    print(f"{name:8} MAE {e.mean():5.1f} mm   p95 {np.percentile(e, 95):5.1f} mm")

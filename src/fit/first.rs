@@ -163,6 +163,15 @@ impl Fitter {
                 &controls,
                 [&calib.front, &calib.side],
             );
+            if self.opts.waist_prior {
+                // The candidate's own levels: the mapped targets keep its heights.
+                if let Ok(m) = crate::measure::measure(&body) {
+                    let l = &m.levels;
+                    plan.set_waist_band(section_prior::WaistBand::new(
+                        l.hip_m, l.waist_m, l.chest_m,
+                    ));
+                }
+            }
             let mut taken = vec![false; body.vertex_count()];
             for &v in indices.iter().chain(&pinned) {
                 taken[v as usize] = true;

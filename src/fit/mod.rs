@@ -23,6 +23,7 @@ mod first;
 pub mod one_view;
 pub mod parts;
 pub mod pose;
+pub mod section_prior;
 pub mod sections;
 pub mod shape;
 
@@ -57,6 +58,9 @@ const PLACEMENT_LEVEL: f64 = 0.55;
 /// heights; the evaluation sets measure 3-19 mm, i.e. up to about 0.011).
 const PLACEMENT_MAX_LEAN: f64 = 0.02;
 
+/// Environment variable that turns [`FitOptions::waist_prior`] off (value `off`).
+pub const WAIST_PRIOR_ENV: &str = "FITSTATION_WAIST_PRIOR";
+
 /// Options of the fit.
 #[derive(Debug, Clone)]
 pub struct FitOptions {
@@ -79,6 +83,11 @@ pub struct FitOptions {
     /// Section-consistent dense targets on the trunk and legs ([`sections`]); off: only
     /// the paper's sparse extreme controls.
     pub dense_sections: bool,
+    /// Give the waist band the section shape of real people's waists
+    /// ([`section_prior`]) instead of the candidate's; needs `dense_sections`. On unless
+    /// the environment sets [`WAIST_PRIOR_ENV`] to `off` (to compare with the candidate's
+    /// shape: `FITSTATION_WAIST_PRIOR=off fitstation eval ...`).
+    pub waist_prior: bool,
     /// Passes of the first fit: after the first, the candidate is chosen again against
     /// the previous pass's fitted avatar and fitted from scratch.
     pub candidate_passes: usize,
@@ -96,6 +105,7 @@ impl Default for FitOptions {
             search: SearchOptions::default(),
             library_size: 252,
             dense_sections: true,
+            waist_prior: std::env::var(WAIST_PRIOR_ENV).as_deref() != Ok("off"),
             candidate_passes: 3,
         }
     }

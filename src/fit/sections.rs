@@ -22,6 +22,7 @@
 //! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
 
 use super::correspond::{extreme_key, ControlSet, Part, Status, Variant};
+use super::section_prior::{reshape, PriorScratch, WaistBand};
 use crate::camera::{Camera, View};
 use glam::DVec3;
 
@@ -90,6 +91,10 @@ pub struct SectionPlan {
     /// Per control: the candidate's own rim point at the control's height (see
     /// [`SectionPlan::set_rims`]); empty until set.
     rims: Vec<DVec3>,
+    /// The trunk's vertices and the candidate's waist band, for the waist's section
+    /// shape ([`super::section_prior`]); no reshaping without a band.
+    torso_vertices: Vec<u32>,
+    waist_band: Option<WaistBand>,
 }
 
 /// Per-entry delta map `d(x) = alpha + beta * x` and the entry's centre height.
@@ -210,6 +215,9 @@ pub struct SectionScratch {
     mids: Vec<f64>,
     raw_shift: Vec<Option<f64>>,
     shifts: Vec<f64>,
+    prior: PriorScratch,
+    /// The corner push applied at the waist at the last call (0 without one).
+    pub waist_push: f64,
 }
 
 fn dense_part(p: Part) -> bool {
@@ -277,8 +285,17 @@ impl SectionPlan {
             if set.slice_part.get(s).copied().is_some_and(dense_part) {
                 plan.vertices.extend_from_slice(members);
             }
+            if set.slice_part.get(s) == Some(&Part::Torso) {
+                plan.torso_vertices.extend_from_slice(members);
+            }
         }
         plan
+    }
+
+    /// Sets the candidate's waist band: [`Self::targets`] then gives the band's sections
+    /// the waist shape of [`super::section_prior`]. None: the candidate's shape.
+    pub fn set_waist_band(&mut self, band: Option<WaistBand>) {
+        self.waist_band = band;
     }
 
     /// Records, per control, the candidate's rim point at the control's height: the point
@@ -406,6 +423,13 @@ impl SectionPlan {
                 }
                 out[v as usize] = Some(q);
             }
+        }
+        scratch.waist_push = match &self.waist_band {
+            Some(band) => reshape(band, &self.torso_vertices, out, &mut scratch.prior).unwrap_or(0.0),
+            None => 0.0,
+        };
+        if super::debug_enabled() {
+            eprintln!("waist prior: {:?} push {:.3}", self.waist_band, scratch.waist_push);
         }
     }
 
