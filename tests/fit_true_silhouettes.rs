@@ -5,6 +5,7 @@
 use fitstation::body::ShapeLibrary;
 use fitstation::camera::StationCalibration;
 use fitstation::fit::correspond::{MaskRef, Variant};
+use fitstation::fit::section_prior::{ellipse_perimeter, WAIST_HULL_TO_ELLIPSE};
 use fitstation::fit::{FitOptions, Fitter, Observation};
 use fitstation::mesh::TriMesh;
 use fitstation::recording::FrameFormat;
@@ -19,6 +20,21 @@ fn load_mask(path: &std::path::Path) -> (u32, u32, Vec<u8>) {
 
 /// Fits seed `seed` on its true masks and returns (measured, truth) per report key.
 fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String, f64, f64)> {
+    let opts = FitOptions {
+        variant,
+        ..FitOptions::default()
+    };
+    fit_seed_with(lib, seed, opts).0
+}
+
+/// [`fit_seed`] with `opts`; also returns the fitted avatar's waist girth over the
+/// perimeter of the ellipse of its trunk's breadth and depth at the waist level.
+fn fit_seed_with(
+    lib: &Arc<ShapeLibrary>,
+    seed: u64,
+    opts: FitOptions,
+) -> (Vec<(String, f64, f64)>, f64) {
+    let variant = opts.variant;
     let dir =
         std::env::temp_dir().join(format!("fitstation-fit-true-{}-{seed}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
@@ -37,10 +53,6 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
         truth.measurements_mm["stature"] / 1000.0,
         crotch + DVec3::new(0.0, 0.08, 0.0),
     );
-    let opts = FitOptions {
-        variant,
-        ..FitOptions::default()
-    };
     let mut fitter = Fitter::new(lib.clone(), opts).expect("fitter");
     let front = MaskRef {
         width: fw,
@@ -55,9 +67,11 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
     let (pos, stats) = fitter.fit(&calib, front, side, &obs).expect("fit");
     eprintln!("seed {seed} {variant:?}: {stats:?}");
     let avatar = TriMesh::new(pos.to_vec(), fitter.template_triangles().to_vec());
-    let m = fitstation::measure::measure(&avatar)
-        .expect("measure")
-        .to_report_map();
+    let measured = fitstation::measure::measure(&avatar).expect("measure");
+    let (b, d) =
+        fitter.trunk_extents_at(&[measured.levels.waist_m])[0].expect("trunk at the waist");
+    let fullness = measured.waist_girth_mm / (1000.0 * ellipse_perimeter(b, d));
+    let m = measured.to_report_map();
     // The truth mesh measured by the same module (not the renderer's own figures).
     let true_mesh = fitstation::mesh::io::read_obj(&truth_dir(&rec).join("mesh.obj"), None)
         .expect("truth mesh");
@@ -65,7 +79,8 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
         .expect("measure truth")
         .to_report_map();
     std::fs::remove_dir_all(&dir).ok();
-    t.iter()
+    let rows = t
+        .iter()
         .map(|(k, v)| {
             (
                 k.clone(),
@@ -73,7 +88,38 @@ fn fit_seed(lib: &Arc<ShapeLibrary>, seed: u64, variant: Variant) -> Vec<(String
                 v.as_f64().unwrap_or(f64::NAN),
             )
         })
-        .collect()
+        .collect();
+    (rows, fullness)
+}
+
+/// The fitted waist's section is as full as real people's (ANSUR II's median), whatever
+/// the candidate's; without the prior it keeps the library body's rounder one.
+#[test]
+fn the_fitted_waist_has_real_peoples_section_shape() {
+    let lib = Arc::new(ShapeLibrary::load_default().expect("library"));
+    let with = |waist_prior| {
+        let opts = FitOptions {
+            waist_prior,
+            ..FitOptions::default()
+        };
+        fit_seed_with(&lib, 11, opts)
+    };
+    let (on_rows, on) = with(true);
+    let (off_rows, off) = with(false);
+    let waist = |rows: &[(String, f64, f64)]| {
+        rows.iter()
+            .find(|r| r.0 == "waist_girth")
+            .map(|r| r.1)
+            .expect("waist")
+    };
+    eprintln!(
+        "waist fullness: prior {on:.4} ({:.1} mm), candidate's {off:.4} ({:.1} mm)",
+        waist(&on_rows),
+        waist(&off_rows)
+    );
+    assert!((on - WAIST_HULL_TO_ELLIPSE).abs() < 0.012, "{on}");
+    assert!((on - off).abs() > 0.005, "{on} vs {off}");
+    assert!((waist(&on_rows) - waist(&off_rows)).abs() > 3.0);
 }
 
 /// Largest error of one girth on one subject, mm.

@@ -153,8 +153,10 @@ fn place(n: DVec2, k: f64, ext: &[f64; 4]) -> DVec2 {
 fn ratio(pts: &[DVec2], centre: DVec2, half: DVec2, k: f64, s: &mut PriorScratch) -> f64 {
     let ext = pushed_extremes(pts, centre, half, k);
     s.pts.clear();
-    s.pts
-        .extend(pts.iter().map(|p| place((*p - centre) / half, k, &ext) * half));
+    s.pts.extend(
+        pts.iter()
+            .map(|p| place((*p - centre) / half, k, &ext) * half),
+    );
     let perimeter = hull_stats(&mut s.pts, &mut s.hull).map_or(0.0, |h| h.perimeter_m);
     perimeter / ellipse_perimeter(2.0 * half.x, 2.0 * half.y)
 }
@@ -277,7 +279,11 @@ mod tests {
             let y = 0.8 + row as f64 * 0.01;
             for i in 0..48 {
                 let t = i as f64 / 48.0 * std::f64::consts::TAU;
-                out.push(Some(DVec3::new(0.15 * t.cos() + 0.02, y, 0.11 * t.sin() - 0.1)));
+                out.push(Some(DVec3::new(
+                    0.15 * t.cos() + 0.02,
+                    y,
+                    0.11 * t.sin() - 0.1,
+                )));
             }
         }
         ((0..out.len() as u32).collect(), out)
@@ -309,7 +315,11 @@ mod tests {
         assert!(k.is_some_and(|k| k > 0.0), "{k:?}");
         let (r, half) = hull_ratio(&section_at(&out, 1.05));
         assert!((r - WAIST_HULL_TO_ELLIPSE).abs() < 0.004, "waist ratio {r}");
-        assert!((half - before.1).abs().max_element() < 2e-4, "{half} vs {}", before.1);
+        assert!(
+            (half - before.1).abs().max_element() < 2e-4,
+            "{half} vs {}",
+            before.1
+        );
         // Outside the band nothing moves; at its edges less than at the waist.
         assert!((hull_ratio(&section_at(&out, 0.82)).0 - before.0).abs() < 1e-9);
         assert!((hull_ratio(&section_at(&out, 1.28)).0 - before.0).abs() < 1e-9);

@@ -425,11 +425,16 @@ impl SectionPlan {
             }
         }
         scratch.waist_push = match &self.waist_band {
-            Some(band) => reshape(band, &self.torso_vertices, out, &mut scratch.prior).unwrap_or(0.0),
+            Some(band) => {
+                reshape(band, &self.torso_vertices, out, &mut scratch.prior).unwrap_or(0.0)
+            }
             None => 0.0,
         };
         if super::debug_enabled() {
-            eprintln!("waist prior: {:?} push {:.3}", self.waist_band, scratch.waist_push);
+            eprintln!(
+                "waist prior: {:?} push {:.3}",
+                self.waist_band, scratch.waist_push
+            );
         }
     }
 
