@@ -625,6 +625,12 @@ impl Fitter {
         plan.evidence_at(&self.section_scratch, region, y, half_window_m)
     }
 
+    /// The trunk's back edges the side view showed at the last fit, (height, z) in
+    /// metres, bottom up; empty without dense section targets.
+    pub fn seen_back_edges(&self) -> &[(f64, f64)] {
+        &self.section_scratch.back_edges
+    }
+
     /// Breadth and depth (x and z extents, metres) of the current avatar's trunk at each
     /// height of `ys`: its torso's (and legs') vertices only, not its arms, whatever
     /// touches them. All None without a subject.

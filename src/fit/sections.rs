@@ -218,6 +218,9 @@ pub struct SectionScratch {
     prior: PriorScratch,
     /// The corner push applied at the waist at the last call (0 without one).
     pub waist_push: f64,
+    /// The trunk's back edges the side view showed at the last call, taken as the
+    /// trunk's own (not a limb's): (entry height, z), metres.
+    pub back_edges: Vec<(f64, f64)>,
 }
 
 fn dense_part(p: Part) -> bool {
@@ -547,6 +550,14 @@ impl SectionPlan {
             None
         };
         drop_foreign_edges(chain.axis, occluders, scratch, &mut constraints);
+        if std::ptr::eq(chain, &self.chains[CHAIN_TORSO_Z]) {
+            scratch.back_edges.clear();
+            for (c, &y) in constraints.iter().zip(&scratch.centres) {
+                if let Some((_, z)) = c[1] {
+                    scratch.back_edges.push((y, z));
+                }
+            }
+        }
         if let Some(raw) = raw_constraints {
             print_side_constraints(occluders, &scratch.centres, &raw, &constraints);
         }

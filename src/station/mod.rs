@@ -627,8 +627,16 @@ impl StationProcessor {
                 _ => uncertainty::frame_sigma_one_view_mm(k, v, evidence),
             };
             if *k == "hip_girth" {
-                frame_sigma =
-                    frame_sigma.hypot(uncertainty::hip_level_sigma_mm(&m, self.side_pixel_m));
+                // The level's openness as the avatar's back and as the side view showed it:
+                // the larger (the same openness, seen twice, is not added).
+                let open = uncertainty::hip_level_sigma_mm(&m, self.side_pixel_m).max(
+                    uncertainty::hip_seen_level_sigma_mm(
+                        &m,
+                        self.fitter.seen_back_edges(),
+                        self.side_pixel_m,
+                    ),
+                );
+                frame_sigma = frame_sigma.hypot(open);
             }
             if let Some((crate::fit::sections::Region::Torso, y)) = level {
                 let extents = torso_levels

@@ -173,6 +173,44 @@ pub fn frame_sigma_one_view_mm(key: &str, girth_mm: f64, evidence: Option<LevelE
     (half_pi * half_pi * (vw + depth_mm * depth_mm) + shape * shape).sqrt()
 }
 
+/// [`hip_level_sigma_mm`] from what the side view showed rather than from the avatar:
+/// the hip is where the person's back reaches furthest, and where the trunk's back edges
+/// (`back_edges`, (height, z) in metres, as the fit took them) lie within `resolution_m`
+/// of the furthest one between the avatar's crotch and waist levels, the person's
+/// furthest point may be at any of those heights, though the avatar's back, smoothed
+/// over a few centimetres, reaches furthest at one. The girths the avatar has at those
+/// heights, against the reported one: half the largest difference is the sigma. 0 with
+/// no edge in the band.
+pub fn hip_seen_level_sigma_mm(
+    m: &Measurements,
+    back_edges: &[(f64, f64)],
+    resolution_m: f64,
+) -> f64 {
+    let l = &m.levels;
+    let in_band = |y: f64| y >= l.crotch_m && y <= l.waist_m;
+    let Some(back) = back_edges
+        .iter()
+        .filter(|e| in_band(e.0))
+        .map(|e| e.1)
+        .min_by(f64::total_cmp)
+    else {
+        return 0.0;
+    };
+    let girth_at = |y: f64| {
+        m.torso_profile
+            .iter()
+            .min_by(|a, b| (a.height_m - y).abs().total_cmp(&(b.height_m - y).abs()))
+            .map(|s| s.girth_mm)
+    };
+    let worst = back_edges
+        .iter()
+        .filter(|e| in_band(e.0) && e.1 <= back + resolution_m)
+        .filter_map(|e| girth_at(e.0))
+        .map(|g| (g - m.hip_girth_mm).abs())
+        .fold(0.0, f64::max);
+    0.5 * worst
+}
+
 /// The standard deviation (mm) the hip's level adds to its girth. The hip is taken
 /// where the torso reaches furthest back (the spec's definition), and on a flat buttock
 /// the back lies within a pixel of its furthest point over several centimetres of
@@ -343,6 +381,52 @@ mod tests {
             back_z_m: -0.3,
         });
         assert!((hip_level_sigma_mm(&m, 0.003) - 20.0).abs() < 1e-9);
+    }
+
+    /// The side view's back edges, not the avatar's back, say where the hip may be: a
+    /// ridge the avatar smoothed away, seen at the gluteal fold, opens the hip down there.
+    #[test]
+    fn a_back_seen_furthest_where_the_avatar_is_not_widens_the_hip() {
+        let library = crate::body::ShapeLibrary::shared().expect("the bundled shape library");
+        let mut m = crate::measure::measure(&library.template().mesh).expect("measured");
+        let (crotch, waist) = (m.levels.crotch_m, m.levels.waist_m);
+        let at = |k: usize| crotch + (waist - crotch) * k as f64 / 10.0;
+        m.hip_girth_mm = 1000.0;
+        m.levels.hip_m = at(5);
+        // The avatar's girth falls 10 mm a step from 1050 at the crotch.
+        m.torso_profile = (0..=10)
+            .map(|k| crate::measure::GirthSample {
+                height_m: at(k),
+                girth_mm: 1050.0 - 10.0 * k as f64,
+                back_z_m: -0.2,
+            })
+            .collect();
+        // Seen: the back furthest at k = 5 alone.
+        let clear: Vec<(f64, f64)> = (0..=10)
+            .map(|k| (at(k), if k == 5 { -0.21 } else { -0.2 }))
+            .collect();
+        assert_eq!(hip_seen_level_sigma_mm(&m, &clear, 0.003), 0.0);
+        // Seen: within 2 mm of the furthest at k = 1 (a ridge at the fold) and k = 5.
+        let ridge: Vec<(f64, f64)> = (0..=10)
+            .map(|k| {
+                (
+                    at(k),
+                    if k == 1 {
+                        -0.208
+                    } else if k == 5 {
+                        -0.21
+                    } else {
+                        -0.2
+                    },
+                )
+            })
+            .collect();
+        // At k = 1 the avatar's girth is 1040: 40 mm from the reported 1000.
+        assert!((hip_seen_level_sigma_mm(&m, &ridge, 0.003) - 20.0).abs() < 1e-9);
+        // Edges outside the crotch-waist band and no edges at all count for nothing.
+        let above = vec![(waist + 0.05, -0.3), (at(5), -0.21)];
+        assert_eq!(hip_seen_level_sigma_mm(&m, &above, 0.003), 0.0);
+        assert_eq!(hip_seen_level_sigma_mm(&m, &[], 0.003), 0.0);
     }
 
     #[test]
