@@ -561,7 +561,12 @@ impl SectionPlan {
         if let Some(raw) = raw_constraints {
             print_side_constraints(occluders, &scratch.centres, &raw, &constraints);
         }
-        fit_maps(&constraints, &mids, scratch, out, evidence);
+        // The trunk keeps the part's own changes of scale (Hampel's rule); the legs'
+        // side-view depth is the union of both legs, an upper bound whose peaks are as
+        // likely the other leg's: their maps keep the plain running median.
+        let keep_own = std::ptr::eq(chain, &self.chains[CHAIN_TORSO_X])
+            || std::ptr::eq(chain, &self.chains[CHAIN_TORSO_Z]);
+        fit_maps(&constraints, &mids, keep_own, scratch, out, evidence);
         scratch.constraints = constraints;
         scratch.mids = mids;
     }
@@ -718,6 +723,7 @@ fn print_side_constraints(
 fn fit_maps(
     constraints: &[[Option<(f64, f64)>; 2]],
     mids: &[f64],
+    keep_own: bool,
     scratch: &mut SectionScratch,
     out: &mut Vec<Delta>,
     evidence: &mut Vec<EntryEvidence>,
@@ -733,7 +739,12 @@ fn fit_maps(
             _ => None,
         }));
     // Scales: running median of the observed ones, filled in from the nearest.
-    running_median(&scratch.raw_scale, &mut scratch.window, &mut scratch.scales);
+    running_median(
+        &scratch.raw_scale,
+        keep_own,
+        &mut scratch.window,
+        &mut scratch.scales,
+    );
     fill(&mut scratch.scales, 1.0);
     // Shifts (delta at the entry's mid) given the smoothed scale.
     scratch.raw_shift.clear();
@@ -748,7 +759,12 @@ fn fit_maps(
         }
         scratch.raw_shift.push((n > 0).then(|| sum / n as f64));
     }
-    running_median(&scratch.raw_shift, &mut scratch.window, &mut scratch.shifts);
+    running_median(
+        &scratch.raw_shift,
+        keep_own,
+        &mut scratch.window,
+        &mut scratch.shifts,
+    );
     fill(&mut scratch.shifts, 0.0);
     // delta(x) = shift + (s - 1)(x - mid) = alpha + beta x.
     out.clear();
@@ -779,7 +795,15 @@ const MIN_MEDIAN_SUPPORT: usize = 3;
 
 /// Running median over `SMOOTH_HALF_WINDOW` of the present values; NaN where a window
 /// has fewer than [`MIN_MEDIAN_SUPPORT`].
-fn running_median(values: &[Option<f64>], window: &mut Vec<f64>, out: &mut Vec<f64>) {
+/// The running median of `values` over [`SMOOTH_HALF_WINDOW`] each side (None: no
+/// value there); with `keep_own`, a value that Hampel's rule calls the part's own is
+/// kept instead (below).
+fn running_median(
+    values: &[Option<f64>],
+    keep_own: bool,
+    window: &mut Vec<f64>,
+    out: &mut Vec<f64>,
+) {
     out.clear();
     let m = values.len();
     for i in 0..m {
@@ -789,17 +813,42 @@ fn running_median(values: &[Option<f64>], window: &mut Vec<f64>, out: &mut Vec<f
         window.extend(values[lo..hi].iter().flatten());
         if window.len() < MIN_MEDIAN_SUPPORT {
             out.push(f64::NAN);
-        } else {
-            window.sort_by(|a, b| a.total_cmp(b));
-            let k = window.len();
-            out.push(if k % 2 == 1 {
-                window[k / 2]
-            } else {
-                0.5 * (window[k / 2 - 1] + window[k / 2])
-            });
+            continue;
         }
+        let med = median_in_place(window);
+        // Hampel's rule: a value within HAMPEL_K robust deviations of its neighbours'
+        // median is the part's own and kept (a median alone cuts every peak and trough
+        // of a changing scale: the chest's widening under the armpits); one further out
+        // is a stray target and replaced by the median.
+        let keep = values[i].filter(|&x| {
+            if !keep_own {
+                return false;
+            }
+            for w in window.iter_mut() {
+                *w = (*w - med).abs();
+            }
+            let mad = median_in_place(window);
+            (x - med).abs() <= HAMPEL_K * MAD_TO_SIGMA * mad
+        });
+        out.push(keep.unwrap_or(med));
     }
 }
+
+/// Median of `w` (non-empty), sorting it.
+fn median_in_place(w: &mut [f64]) -> f64 {
+    w.sort_by(|a, b| a.total_cmp(b));
+    let k = w.len();
+    if k % 2 == 1 {
+        w[k / 2]
+    } else {
+        0.5 * (w[k / 2 - 1] + w[k / 2])
+    }
+}
+
+/// Hampel's outlier rule: robust standard deviations (the median absolute deviation
+/// times [`MAD_TO_SIGMA`], a normal's sigma) a value may lie from its window's median.
+const HAMPEL_K: f64 = 3.0;
+const MAD_TO_SIGMA: f64 = 1.4826;
 
 /// Gaps up to this many entries are bridged by linear interpolation; across a longer
 /// gap each side's value is held and the two meet in a linear ramp of this length in the
@@ -928,6 +977,30 @@ mod tests {
         let keep = outward_inliers(&y, &d, OUTWARD_TOLERANCE_M);
         for (i, k) in keep.iter().enumerate() {
             assert_eq!(*k, !(20..35).contains(&i), "sample {i}");
+        }
+    }
+
+    #[test]
+    fn the_trunks_smoothing_keeps_a_peak_and_drops_a_stray_value() {
+        // A scale rising to a peak and falling again (the chest under the armpits).
+        let peak: Vec<Option<f64>> = [0.90, 0.92, 0.95, 1.00, 1.06, 1.12, 1.19, 1.18, 1.16]
+            .iter()
+            .map(|&v| Some(v))
+            .collect();
+        let (mut w, mut own, mut med) = (Vec::new(), Vec::new(), Vec::new());
+        running_median(&peak, true, &mut w, &mut own);
+        running_median(&peak, false, &mut w, &mut med);
+        assert!((own[6] - 1.19).abs() < 1e-12, "{own:?}");
+        assert!(med[6] < 1.17, "the median cuts the peak: {med:?}");
+        // One stray target in a flat run is replaced by its neighbours' median, and a
+        // missing one filled by it, in both modes.
+        let mut stray: Vec<Option<f64>> = vec![Some(1.0); 9];
+        stray[4] = Some(1.15);
+        stray[2] = None;
+        for keep in [true, false] {
+            running_median(&stray, keep, &mut w, &mut own);
+            assert!((own[4] - 1.0).abs() < 1e-12, "{own:?}");
+            assert!((own[2] - 1.0).abs() < 1e-12, "{own:?}");
         }
     }
 
