@@ -10,11 +10,13 @@
 //! the side view its z extent. Here every slice of the trunk and of each leg is mapped by
 //! an axis-wise affine map (x' = x + a + (s - 1)(x - c), the same for z) that takes its
 //! extreme controls onto their targets; the scales and shifts are smoothed along the
-//! part with a running median (a notch or a stray target does not ripple the surface),
-//! filled in from the neighbours where a view gives only one side or none (an arm over
+//! part with a running median (a notch or a stray target does not ripple the surface;
+//! on the trunk only a value Hampel's rule calls stray is replaced, so the chest keeps
+//! its widening under the armpits), filled in from the neighbours where a view gives only one side or none (an arm over
 //! the trunk, the other leg), and blended linearly in height between slice centres. Every
 //! vertex of those slices then gets the mapped position as its target, so the section
-//! keeps the candidate's (the statistical shape prior's) shape, scaled to both views.
+//! keeps the candidate's (the statistical shape prior's) shape, scaled to both views
+//! (about the waist, real people's shape: [`super::section_prior`]).
 //!
 //! In the side view the legs overlap: there the two legs of one height band share one z
 //! map, fitted to the union of both (whichever leg owns an edge gives its target).
@@ -793,11 +795,9 @@ const RIM_BIN_M: f64 = 0.01;
 /// interpolation between better-supported neighbours instead).
 const MIN_MEDIAN_SUPPORT: usize = 3;
 
-/// Running median over `SMOOTH_HALF_WINDOW` of the present values; NaN where a window
-/// has fewer than [`MIN_MEDIAN_SUPPORT`].
-/// The running median of `values` over [`SMOOTH_HALF_WINDOW`] each side (None: no
-/// value there); with `keep_own`, a value that Hampel's rule calls the part's own is
-/// kept instead (below).
+/// Running median over `SMOOTH_HALF_WINDOW` each side of the present values (None: no
+/// value there); NaN where a window has fewer than [`MIN_MEDIAN_SUPPORT`]. With
+/// `keep_own`, a value that Hampel's rule calls the part's own is kept instead (below).
 fn running_median(
     values: &[Option<f64>],
     keep_own: bool,
