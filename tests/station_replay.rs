@@ -25,10 +25,22 @@ fn synth(dir: &Path, seed: u64, subject_frames: usize) -> PathBuf {
 }
 
 fn fitstation(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_fitstation"))
-        .args(args)
-        .output()
-        .expect("run fitstation")
+    run_fitstation(args, false)
+}
+
+/// [`fitstation`] with the fit keeping the candidate's waist shape (no real-people waist,
+/// `fit::section_prior`): for library bodies, whose waists are rounder than people's.
+fn fitstation_candidate_waist(args: &[&str]) -> std::process::Output {
+    run_fitstation(args, true)
+}
+
+fn run_fitstation(args: &[&str], candidate_waist: bool) -> std::process::Output {
+    let mut cmd = Command::new(env!("CARGO_BIN_EXE_fitstation"));
+    cmd.args(args);
+    if candidate_waist {
+        cmd.env(fitstation::fit::WAIST_PRIOR_ENV, "off");
+    }
+    cmd.output().expect("run fitstation")
 }
 
 /// `fitstation replay REC --out OUT`.
@@ -51,17 +63,13 @@ fn replay_measures_a_synthetic_subject_close_to_its_truth() {
     // (`fit::section_prior`, tested in `fit_true_silhouettes`) reads it 40 mm large
     // (723 mm against 683 with the candidate's shape, truth 671). This test guards the
     // wiring, so the fit keeps the candidate's waist shape.
-    let o = Command::new(env!("CARGO_BIN_EXE_fitstation"))
-        .args([
-            "replay",
-            rec.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--json",
-        ])
-        .env(fitstation::fit::WAIST_PRIOR_ENV, "off")
-        .output()
-        .expect("run fitstation");
+    let o = fitstation_candidate_waist(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ]);
     assert!(
         o.status.success(),
         "replay failed: {}",
@@ -423,16 +431,12 @@ fn a_pose_settled_after_the_first_fit_has_the_body_chosen_again() {
     // fit's real-people waist shape (`fit::section_prior`) would put this waist 60 mm
     // large whichever body is chosen. What is tested here is the choice, so the fit keeps
     // the candidate's waist shape.
-    let o = Command::new(env!("CARGO_BIN_EXE_fitstation"))
-        .args([
-            "replay",
-            rec.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-        ])
-        .env(fitstation::fit::WAIST_PRIOR_ENV, "off")
-        .output()
-        .expect("run fitstation");
+    let o = fitstation_candidate_waist(&[
+        "replay",
+        rec.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let report: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(out.join("report.json")).unwrap()).unwrap();

@@ -82,23 +82,22 @@ impl WaistBand {
     }
 }
 
-/// One bin's section: centre and half-extents of its points, and the extreme normalised
-/// coordinates after the push (to rescale each side back onto its rim).
-#[derive(Debug, Clone, Copy, Default)]
+/// One reshaped bin's section: centre and half-extents of its points, its push, and the
+/// extreme normalised coordinates after the push (to rescale each side onto its rim).
+#[derive(Debug, Clone, Copy)]
 struct BinFrame {
     centre: DVec2,
     half: DVec2,
+    k: f64,
     /// Largest and least pushed u, then v.
     pushed: [f64; 4],
-    k: f64,
-    ok: bool,
 }
 
 /// Reusable buffers of [`reshape`].
 #[derive(Debug, Clone, Default)]
 pub struct PriorScratch {
     bins: Vec<Vec<DVec2>>,
-    frames: Vec<BinFrame>,
+    frames: Vec<Option<BinFrame>>,
     pts: Vec<DVec2>,
     hull: Vec<DVec2>,
 }
@@ -161,14 +160,21 @@ fn ratio(pts: &[DVec2], centre: DVec2, half: DVec2, k: f64, s: &mut PriorScratch
     perimeter / ellipse_perimeter(2.0 * half.x, 2.0 * half.y)
 }
 
-/// The push that brings the section `pts` to `target` (hull over ellipse), by two secant
-/// steps from the probe; None if the section is degenerate.
-fn solve_k(pts: &[DVec2], target: f64, s: &mut PriorScratch) -> Option<f64> {
-    let (centre, half) = frame_of(pts);
+/// The push that brings the section `pts` (bounding `centre` and `half`-extents, hull
+/// over ellipse `r0` unpushed) to `target`, by two secant steps from the probe; None if
+/// the section is degenerate.
+fn solve_k(
+    pts: &[DVec2],
+    centre: DVec2,
+    half: DVec2,
+    r0: f64,
+    target: f64,
+    s: &mut PriorScratch,
+) -> Option<f64> {
     if pts.len() < MIN_POINTS || half.min_element() < 1e-3 {
         return None;
     }
-    let (mut k0, mut r0) = (0.0, ratio(pts, centre, half, 0.0, s));
+    let (mut k0, mut r0) = (0.0, r0);
     let (mut k1, mut r1) = (K_PROBE, ratio(pts, centre, half, K_PROBE, s));
     for _ in 0..2 {
         if (r1 - r0).abs() < 1e-6 {
@@ -215,7 +221,9 @@ pub fn reshape(
     let waist_bin = bin_of(band.waist_y) as usize;
     let mut pts = Vec::new();
     gather(&s.bins, waist_bin, &mut pts);
-    let k = solve_k(&pts, WAIST_HULL_TO_ELLIPSE, s)?;
+    let (centre, half) = frame_of(&pts);
+    let r0 = ratio(&pts, centre, half, 0.0, s);
+    let k = solve_k(&pts, centre, half, r0, WAIST_HULL_TO_ELLIPSE, s)?;
     let mut frames = std::mem::take(&mut s.frames);
     frames.clear();
     for b in 0..n_bins {
@@ -229,23 +237,23 @@ pub fn reshape(
             Some(k)
         } else if w > 0.0 && pts.len() >= MIN_POINTS {
             let r0 = ratio(&pts, centre, half, 0.0, s);
-            solve_k(&pts, r0 + w * (WAIST_HULL_TO_ELLIPSE - r0), s)
+            solve_k(
+                &pts,
+                centre,
+                half,
+                r0,
+                r0 + w * (WAIST_HULL_TO_ELLIPSE - r0),
+                s,
+            )
         } else {
             None
         };
-        let ok = kb.is_some_and(|k| k != 0.0);
-        let kb = kb.unwrap_or(0.0);
-        frames.push(BinFrame {
+        frames.push(kb.filter(|&k| k != 0.0).map(|k| BinFrame {
             centre,
             half,
-            pushed: if ok {
-                pushed_extremes(&pts, centre, half, kb)
-            } else {
-                [1.0, -1.0, 1.0, -1.0]
-            },
-            k: kb,
-            ok,
-        });
+            k,
+            pushed: pushed_extremes(&pts, centre, half, k),
+        }));
     }
     for &v in torso {
         let Some(p) = out.get_mut(v as usize).and_then(|p| p.as_mut()) else {
@@ -255,10 +263,9 @@ pub fn reshape(
         if b < 0.0 || b as usize >= n_bins {
             continue;
         }
-        let f = frames[b as usize];
-        if !f.ok {
+        let Some(f) = frames[b as usize] else {
             continue;
-        }
+        };
         let n = (DVec2::new(p.x, p.z) - f.centre) / f.half;
         let q = f.centre + place(n, f.k, &f.pushed) * f.half;
         p.x = q.x;

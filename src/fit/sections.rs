@@ -218,8 +218,6 @@ pub struct SectionScratch {
     raw_shift: Vec<Option<f64>>,
     shifts: Vec<f64>,
     prior: PriorScratch,
-    /// The corner push applied at the waist at the last call (0 without one).
-    pub waist_push: f64,
     /// The trunk's back edges the side view showed at the last call, taken as the
     /// trunk's own (not a limb's): (entry height, z), metres.
     pub back_edges: Vec<(f64, f64)>,
@@ -389,14 +387,14 @@ impl SectionPlan {
         out.resize(positions.len(), None);
         scratch.deltas.resize(self.chains.len(), Vec::new());
         scratch.evidence.resize(self.chains.len(), Vec::new());
-        for (ci, chain) in self.chains.iter().enumerate() {
+        for ci in 0..self.chains.len() {
             let mut ds = std::mem::take(&mut scratch.deltas[ci]);
             let mut ev = std::mem::take(&mut scratch.evidence[ci]);
             // The known limbs are the arms: they free the trunk's side outline; the
             // thighs' own overlap in the side view keeps the smooth-trend test.
             let limbs = if ci == CHAIN_TORSO_Z { occluders } else { &[] };
             self.chain_deltas(
-                chain, positions, set, targets, limbs, scratch, &mut ds, &mut ev,
+                ci, positions, set, targets, limbs, scratch, &mut ds, &mut ev,
             );
             scratch.deltas[ci] = ds;
             scratch.evidence[ci] = ev;
@@ -429,17 +427,11 @@ impl SectionPlan {
                 out[v as usize] = Some(q);
             }
         }
-        scratch.waist_push = match &self.waist_band {
-            Some(band) => {
-                reshape(band, &self.torso_vertices, out, &mut scratch.prior).unwrap_or(0.0)
+        if let Some(band) = &self.waist_band {
+            let push = reshape(band, &self.torso_vertices, out, &mut scratch.prior);
+            if super::debug_enabled() {
+                eprintln!("waist prior: {band:?} push {push:?}");
             }
-            None => 0.0,
-        };
-        if super::debug_enabled() {
-            eprintln!(
-                "waist prior: {:?} push {:.3}",
-                self.waist_band, scratch.waist_push
-            );
         }
     }
 
@@ -526,7 +518,7 @@ impl SectionPlan {
     #[allow(clippy::too_many_arguments)]
     fn chain_deltas(
         &self,
-        chain: &Chain,
+        ci: usize,
         positions: &[DVec3],
         set: &ControlSet,
         targets: &[Option<DVec3>],
@@ -535,6 +527,7 @@ impl SectionPlan {
         out: &mut Vec<Delta>,
         evidence: &mut Vec<EntryEvidence>,
     ) {
+        let chain = &self.chains[ci];
         let mut constraints = std::mem::take(&mut scratch.constraints);
         let mut mids = std::mem::take(&mut scratch.mids);
         self.gather_constraints(
@@ -552,7 +545,7 @@ impl SectionPlan {
             None
         };
         drop_foreign_edges(chain.axis, occluders, scratch, &mut constraints);
-        if std::ptr::eq(chain, &self.chains[CHAIN_TORSO_Z]) {
+        if ci == CHAIN_TORSO_Z {
             scratch.back_edges.clear();
             for (c, &y) in constraints.iter().zip(&scratch.centres) {
                 if let Some((_, z)) = c[1] {
@@ -566,8 +559,7 @@ impl SectionPlan {
         // The trunk keeps the part's own changes of scale (Hampel's rule); the legs'
         // side-view depth is the union of both legs, an upper bound whose peaks are as
         // likely the other leg's: their maps keep the plain running median.
-        let keep_own = std::ptr::eq(chain, &self.chains[CHAIN_TORSO_X])
-            || std::ptr::eq(chain, &self.chains[CHAIN_TORSO_Z]);
+        let keep_own = ci == CHAIN_TORSO_X || ci == CHAIN_TORSO_Z;
         fit_maps(&constraints, &mids, keep_own, scratch, out, evidence);
         scratch.constraints = constraints;
         scratch.mids = mids;

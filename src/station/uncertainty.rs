@@ -186,29 +186,47 @@ pub fn hip_seen_level_sigma_mm(
     back_edges: &[(f64, f64)],
     resolution_m: f64,
 ) -> f64 {
+    level_openness_sigma_mm(m, back_edges.iter().copied(), resolution_m)
+}
+
+/// Half the largest difference from the reported hip girth of the avatar's girths at the
+/// heights of `backs` ((height, back z), metres) whose back lies within `resolution_m` of
+/// the furthest one between the crotch and waist levels; 0 with none in that band.
+fn level_openness_sigma_mm(
+    m: &Measurements,
+    backs: impl Iterator<Item = (f64, f64)> + Clone,
+    resolution_m: f64,
+) -> f64 {
     let l = &m.levels;
-    let in_band = |y: f64| y >= l.crotch_m && y <= l.waist_m;
-    let Some(back) = back_edges
-        .iter()
-        .filter(|e| in_band(e.0))
-        .map(|e| e.1)
+    let in_band = |&(y, _): &(f64, f64)| y >= l.crotch_m && y <= l.waist_m;
+    let Some(back) = backs
+        .clone()
+        .filter(in_band)
+        .map(|(_, z)| z)
         .min_by(f64::total_cmp)
     else {
         return 0.0;
     };
-    let girth_at = |y: f64| {
-        m.torso_profile
-            .iter()
-            .min_by(|a, b| (a.height_m - y).abs().total_cmp(&(b.height_m - y).abs()))
-            .map(|s| s.girth_mm)
-    };
-    let worst = back_edges
-        .iter()
-        .filter(|e| in_band(e.0) && e.1 <= back + resolution_m)
-        .filter_map(|e| girth_at(e.0))
+    let worst = backs
+        .filter(in_band)
+        .filter(|&(_, z)| z <= back + resolution_m)
+        .filter_map(|(y, _)| profile_girth_at(m, y))
         .map(|g| (g - m.hip_girth_mm).abs())
         .fold(0.0, f64::max);
     0.5 * worst
+}
+
+/// The avatar's torso girth at the profile sample nearest height `y` (the lower of two
+/// as near); the profile runs upward.
+fn profile_girth_at(m: &Measurements, y: f64) -> Option<f64> {
+    let p = &m.torso_profile;
+    let i = p.partition_point(|s| s.height_m < y);
+    let below = i.checked_sub(1).and_then(|j| p.get(j));
+    match (below, p.get(i)) {
+        (Some(a), Some(b)) if (b.height_m - y) < (y - a.height_m) => Some(b.girth_mm),
+        (Some(a), _) => Some(a.girth_mm),
+        (None, b) => b.map(|b| b.girth_mm),
+    }
 }
 
 /// The standard deviation (mm) the hip's level adds to its girth. The hip is taken
@@ -221,26 +239,11 @@ pub fn hip_seen_level_sigma_mm(
 /// reported one; half of it is the sigma (the `±` then spans the range). 0 without a
 /// profile.
 pub fn hip_level_sigma_mm(m: &Measurements, resolution_m: f64) -> f64 {
-    let l = &m.levels;
-    let band =
-        |s: &&crate::measure::GirthSample| s.height_m >= l.crotch_m && s.height_m <= l.waist_m;
-    let Some(back) = m
-        .torso_profile
-        .iter()
-        .filter(band)
-        .map(|s| s.back_z_m)
-        .min_by(f64::total_cmp)
-    else {
-        return 0.0;
-    };
-    let worst = m
-        .torso_profile
-        .iter()
-        .filter(band)
-        .filter(|s| s.back_z_m <= back + resolution_m)
-        .map(|s| (s.girth_mm - m.hip_girth_mm).abs())
-        .fold(0.0, f64::max);
-    0.5 * worst
+    level_openness_sigma_mm(
+        m,
+        m.torso_profile.iter().map(|s| (s.height_m, s.back_z_m)),
+        resolution_m,
+    )
 }
 
 /// The standard deviation (mm) of a torso girth whose tape loop takes in more than the
