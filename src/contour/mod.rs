@@ -418,6 +418,50 @@ fn fill_polygon_rows(
     set
 }
 
+/// Puts the two ends of every span of a polygon's fill (`crossings`: its sorted (row, x)
+/// crossings, as [`fill_polygon`] leaves them in its scratch) on ramps in `data` (a
+/// `width`-wide 0/255 mask of that fill): along a row, the value through the pixel
+/// centres is 255 × (0.5 + distance inside the crossing), so that a bilinear occupancy
+/// (value / 255) crosses one half at the crossing itself, within 0.1 px, instead of at the
+/// pixel border nearest to it. Pixels inside keep a value above 127 and pixels outside
+/// one of 127 or less: thresholded, the mask is unchanged.
+pub fn soften_span_ends(crossings: &[(u32, f32)], width: u32, data: &mut [u8]) {
+    let w = width as i64;
+    // 255 x the ramp's value at pixel centre x, for a crossing at c with the inside
+    // toward `dir` (+1: x > c inside).
+    let ramp = |x: i64, c: f64, dir: f64| 255.0 * (0.5 + dir * (x as f64 - c));
+    for pair in crossings.chunks_exact(2) {
+        let (r, xa, xb) = (pair[0].0, pair[0].1 as f64, pair[1].1 as f64);
+        if pair[1].0 != r || xb <= xa {
+            continue;
+        }
+        let row = r as usize * width as usize;
+        let x0 = xa.ceil() as i64; // first pixel centre inside
+        let x1 = xb.ceil() as i64; // first pixel centre outside on the right
+        for (x, v) in [
+            (x0, ramp(x0, xa, 1.0).min(ramp(x0, xb, -1.0))),
+            (x1 - 1, ramp(x1 - 1, xa, 1.0).min(ramp(x1 - 1, xb, -1.0))),
+        ] {
+            if x1 > x0 && (0..w).contains(&x) {
+                if let Some(d) = data.get_mut(row + x as usize) {
+                    if *d > 127 {
+                        *d = v.round().clamp(128.0, 255.0) as u8;
+                    }
+                }
+            }
+        }
+        for (x, v) in [(x0 - 1, ramp(x0 - 1, xa, 1.0)), (x1, ramp(x1, xb, -1.0))] {
+            if (0..w).contains(&x) {
+                if let Some(d) = data.get_mut(row + x as usize) {
+                    if *d <= 127 {
+                        *d = (*d).max(v.round().clamp(0.0, 127.0) as u8);
+                    }
+                }
+            }
+        }
+    }
+}
+
 /// Floor without a libm call (baseline x86-64 has no rounding instruction).
 #[inline(always)]
 fn fast_floor(v: f64) -> i64 {
@@ -535,6 +579,66 @@ mod tests {
         assert_eq!(spans, read_back);
         assert_eq!(n, m.area());
         assert!(n > 500);
+    }
+
+    /// The ramps put a row's one-half crossing on the polygon's own edge (within 0.1 px,
+    /// where the binary fill is off by up to half a pixel), and thresholded they are the
+    /// fill again.
+    #[test]
+    fn softened_span_ends_cross_one_half_on_the_outline() {
+        let (w, h) = (40u32, 12u32);
+        for k in 0..20 {
+            let (xa, xb) = (5.0 + 0.05 * k as f64, 30.0 - 0.037 * k as f64);
+            let quad = [
+                DVec2::new(xa, 0.5),
+                DVec2::new(xb, 0.5),
+                DVec2::new(xb, 10.5),
+                DVec2::new(xa, 10.5),
+            ];
+            let mut m = Mask::new(w, h);
+            let mut s = Vec::new();
+            fill_polygon(&quad, &mut m, &mut s);
+            let mut soft = m.data.clone();
+            soften_span_ends(&s, w, &mut soft);
+            let binary: Vec<u8> = soft
+                .iter()
+                .map(|&v| if v > 127 { 255 } else { 0 })
+                .collect();
+            assert_eq!(binary, m.data);
+            // The one-half crossings of row 5, by linear interpolation between centres.
+            let row = &soft[5 * w as usize..6 * w as usize];
+            let occ = |x: usize| row[x] as f64 / 255.0;
+            let cross = |x: usize| x as f64 + (0.5 - occ(x)) / (occ(x + 1) - occ(x));
+            let left = (0..w as usize - 1).find(|&x| occ(x) < 0.5 && occ(x + 1) >= 0.5);
+            let right = (0..w as usize - 1).find(|&x| occ(x) >= 0.5 && occ(x + 1) < 0.5);
+            let (Some(l), Some(r)) = (left, right) else {
+                panic!("no crossing in row 5 for k = {k}");
+            };
+            assert!((cross(l) - xa).abs() < 0.1, "left {} vs {xa}", cross(l));
+            assert!((cross(r) - xb).abs() < 0.1, "right {} vs {xb}", cross(r));
+            // The binary fill's crossings sit on pixel borders.
+            let hard = |x: usize| m.data[5 * w as usize + x] > 127;
+            let hl = (0..w as usize).find(|&x| hard(x)).map(|x| x as f64 - 0.5);
+            assert!(hl.is_some_and(|b| (b - xa).abs() <= 0.5 + 1e-9));
+        }
+        // A span narrower than a pixel keeps its one centre inside.
+        let sliver = [
+            DVec2::new(10.7, 0.5),
+            DVec2::new(11.3, 0.5),
+            DVec2::new(11.3, 3.5),
+            DVec2::new(10.7, 3.5),
+        ];
+        let mut m = Mask::new(w, h);
+        let mut s = Vec::new();
+        fill_polygon(&sliver, &mut m, &mut s);
+        let mut soft = m.data.clone();
+        soften_span_ends(&s, w, &mut soft);
+        let row = &soft[2 * w as usize..3 * w as usize];
+        assert!(
+            row[11] > 127 && row[10] <= 127 && row[12] <= 127,
+            "{:?}",
+            &row[9..13]
+        );
     }
 
     #[test]

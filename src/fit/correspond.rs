@@ -108,7 +108,8 @@ pub struct Control {
 pub struct MaskRef<'a> {
     pub width: u32,
     pub height: u32,
-    /// Row-major, 0 = background, anything above 127 = person.
+    /// Row-major, 0 = background, 255 = person; values between are the share of the
+    /// pixel's ramp across the outline (above 127: person).
     pub data: &'a [u8],
 }
 
@@ -127,12 +128,9 @@ impl MaskRef<'_> {
             if x < 0 || y < 0 || x >= w || y >= h {
                 0.0
             } else {
-                let v = self.data.get((y * w + x) as usize).copied().unwrap_or(0);
-                if v > 127 {
-                    1.0
-                } else {
-                    0.0
-                }
+                // A 0/255 mask, or one whose outline's pixels carry a ramp through it
+                // (`contour::soften_span_ends`): the occupancy crosses one half there.
+                f64::from(self.data.get((y * w + x) as usize).copied().unwrap_or(0)) / 255.0
             }
         };
         let top = at(x0, y0) * (1.0 - fx) + at(x0 + 1, y0) * fx;

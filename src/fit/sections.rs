@@ -164,11 +164,21 @@ pub const MAX_SIDE_OCCLUDERS: usize = 6;
 /// (y, z) plane: the segment from `a` to `b` (each `(y, z)`, metres) widened by `radius`.
 /// The side camera looks along x, so an edge of the side silhouette at height y and depth
 /// z inside the capsule may be the limb's.
+///
+/// The capsule lies on the plane x = `x` (the limb's, as the front view places it). An
+/// edge found at another x (the trunk's outline) is first moved along the side camera's
+/// ray from `eye` onto that plane ([`SideOccluder::covers_seen`]): an arm a quarter of a
+/// metre nearer or further than the trunk meets the same ray several centimetres higher
+/// or lower and nearer or further from the camera's height.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct SideOccluder {
     pub a: glam::DVec2,
     pub b: glam::DVec2,
     pub radius: f64,
+    /// The x of the capsule's plane, metres.
+    pub x: f64,
+    /// The side camera's centre, station frame.
+    pub eye: DVec3,
 }
 
 impl SideOccluder {
@@ -182,6 +192,18 @@ impl SideOccluder {
             0.0
         };
         (self.a + ab * t).distance(p) <= self.radius + margin
+    }
+
+    /// Whether the silhouette point `seen` (station frame, found at its own x) lies on
+    /// the capsule once moved along the side camera's ray onto the capsule's plane.
+    pub fn covers_seen(&self, seen: DVec3, margin: f64) -> bool {
+        let d = seen.x - self.eye.x;
+        let s = (self.x - self.eye.x) / d;
+        if !(d.abs() > 1e-9 && s > 0.0) {
+            return self.covers(seen.y, seen.z, margin);
+        }
+        let q = self.eye + (seen - self.eye) * s;
+        self.covers(q.y, q.z, margin)
     }
 }
 
@@ -221,6 +243,9 @@ pub struct SectionScratch {
     /// The trunk's back edges the side view showed at the last call, taken as the
     /// trunk's own (not a limb's): (entry height, z), metres.
     pub back_edges: Vec<(f64, f64)>,
+    /// Per entry of the chain being fitted, the x of the edge taken on each side (hi, lo),
+    /// metres: where the side view's edge was found, for the limb capsules' test.
+    edge_x: Vec<[f64; 2]>,
 }
 
 fn dense_part(p: Part) -> bool {
@@ -581,12 +606,14 @@ impl SectionPlan {
     ) {
         let (hi_status, lo_status) = chain.axis.statuses();
         scratch.centres.clear();
+        scratch.edge_x.clear();
         constraints.clear();
         mids.clear();
         for e in &chain.entries {
             let (mut hi, mut lo) = (f64::MIN, f64::MAX);
             let mut c_hi: Option<(f64, f64)> = None;
             let mut c_lo: Option<(f64, f64)> = None;
+            let mut x_edge = [0.0f64; 2];
             let mut ysum = 0.0;
             let mut yn = 0usize;
             for &s in &e.slices {
@@ -604,17 +631,16 @@ impl SectionPlan {
                         .copied()
                         .unwrap_or(positions[c.vertex as usize]);
                     let p = chain.axis.of(at);
-                    let t = targets
-                        .get(ci as usize)
-                        .copied()
-                        .flatten()
-                        .map(|t| chain.axis.of(t));
+                    let target = targets.get(ci as usize).copied().flatten();
+                    let t = target.map(|t| chain.axis.of(t));
+                    let tx = target.map_or(0.0, |t| t.x);
                     if c.status == hi_status {
                         hi = hi.max(p);
                         if let Some(t) = t {
                             // Of two owners, the one reaching further.
                             if c_hi.is_none_or(|(_, t0)| t > t0) {
                                 c_hi = Some((p, t));
+                                x_edge[0] = tx;
                             }
                         }
                     } else if c.status == lo_status {
@@ -622,6 +648,7 @@ impl SectionPlan {
                         if let Some(t) = t {
                             if c_lo.is_none_or(|(_, t0)| t < t0) {
                                 c_lo = Some((p, t));
+                                x_edge[1] = tx;
                             }
                         }
                     }
@@ -632,6 +659,7 @@ impl SectionPlan {
                 .push(if yn > 0 { ysum / yn as f64 } else { 0.0 });
             mids.push(if hi >= lo { 0.5 * (hi + lo) } else { 0.0 });
             constraints.push([c_hi, c_lo]);
+            scratch.edge_x.push(x_edge);
         }
     }
 }
@@ -676,11 +704,12 @@ fn drop_foreign_edges(
                 .as_ref()
                 .map_or(on_trend, |l| l.get(k).copied().unwrap_or(true));
             // In the side view, an edge inside a known limb's capsule may be the limb's.
+            let seen = DVec3::new(scratch.edge_x[e][side], scratch.centres[e], t);
             let in_limb = known
                 && occluders
                     .iter()
                     .flatten()
-                    .any(|o| o.covers(scratch.centres[e], t, OCCLUDER_MARGIN_M));
+                    .any(|o| o.covers_seen(seen, OCCLUDER_MARGIN_M));
             if !(plausible && (on_trend || (known && !in_limb))) {
                 c[side] = None;
             }
@@ -1111,6 +1140,8 @@ mod tests {
             a: glam::DVec2::new(0.60, 0.15),
             b: glam::DVec2::new(0.80, 0.15),
             radius: 0.02,
+            x: 0.0,
+            eye: DVec3::new(3.0, 0.7, 0.0),
         };
         assert!(forearm.covers(0.7, 0.16, 0.0) && !forearm.covers(0.7, 0.10, 0.015));
         let (plan, scratch, out) = targets_with_limb(&mesh, &set, &targets, forearm);
@@ -1126,6 +1157,33 @@ mod tests {
         assert!(e.depth.seen < 0.75 && e.width.seen > 0.99, "{e:?}");
     }
 
+    /// The side camera sees a forearm a quarter of a metre nearer the far wall than the
+    /// trunk: the trunk's edge on the forearm's ray is found at x = 0, 2.5 cm higher than
+    /// where the ray meets the forearm's plane. Moved along its ray it is the forearm's;
+    /// taken where it was found it would not be.
+    #[test]
+    fn a_seen_edge_is_tested_on_the_limbs_own_plane() {
+        let forearm = SideOccluder {
+            a: glam::DVec2::new(1.0, -0.07),
+            b: glam::DVec2::new(0.92, 0.09),
+            radius: 0.04,
+            x: -0.3,
+            eye: DVec3::new(3.2, 1.25, 0.04),
+        };
+        // A point 4.5 cm from the forearm's axis on its plane, seen at x = 0.
+        let seen = DVec3::new(0.0, 1.0217, 0.0310);
+        assert!(forearm.covers_seen(seen, 0.01));
+        assert!(!forearm.covers(seen.y, seen.z, 0.01));
+        // On the capsule's own plane nothing moves.
+        let on_plane = DVec3::new(-0.3, 0.96, 0.01);
+        assert_eq!(
+            forearm.covers_seen(on_plane, 0.0),
+            forearm.covers(0.96, 0.01, 0.0)
+        );
+        // Beyond the capsule on the far side of the axis stays beyond it.
+        assert!(!forearm.covers_seen(DVec3::new(0.0, 0.90, -0.08), 0.01));
+    }
+
     #[test]
     fn a_limb_over_the_trunks_own_outline_does_not_hide_it() {
         // The side view's forearm keypoints put its capsule over the trunk's front edge
@@ -1139,6 +1197,8 @@ mod tests {
             a: glam::DVec2::new(0.60, 0.085),
             b: glam::DVec2::new(0.80, 0.085),
             radius: 0.02,
+            x: 0.0,
+            eye: DVec3::new(3.0, 0.7, 0.0),
         };
         assert!(forearm.covers(0.70, 0.108, OCCLUDER_MARGIN_M));
         let (_, _, out) = targets_with_limb(&mesh, &set, &targets, forearm);

@@ -113,6 +113,23 @@ pub struct SilhouetteTimings {
 pub struct ViewMasks {
     pub front: Mask,
     pub side: Mask,
+    /// The fitter's masks (the binary masks' sizes): the same pixels, with each row's
+    /// two ends of the outline's spans on a ramp through the sub-pixel outline
+    /// ([`contour::soften_span_ends`]), so that a bilinear occupancy crosses one half on
+    /// the outline rather than on a pixel border. Read with the binary masks' threshold
+    /// (above 127: person) they are the binary masks.
+    pub front_fit: Vec<u8>,
+    pub side_fit: Vec<u8>,
+}
+
+impl ViewMasks {
+    /// A view's fitter mask ([`ViewMasks::front_fit`]).
+    pub fn fit_mask(&self, view: View) -> (&Mask, &[u8]) {
+        match view {
+            View::Front => (&self.front, &self.front_fit),
+            View::Side => (&self.side, &self.side_fit),
+        }
+    }
 }
 
 /// Everything the silhouette stage found in a frame pair.
@@ -356,11 +373,24 @@ impl SilhouetteExecutor {
                 out.masks.side.width = 0;
                 out.masks.side.height = 0;
                 out.masks.side.data.clear();
+                out.masks.side_fit.clear();
                 continue;
             }
-            let (state, frame, analysis, mask) = match view {
-                View::Front => (&mut self.front, front, &mut out.front, &mut out.masks.front),
-                View::Side => (&mut self.side, side, &mut out.side, &mut out.masks.side),
+            let (state, frame, analysis, mask, fit_mask) = match view {
+                View::Front => (
+                    &mut self.front,
+                    front,
+                    &mut out.front,
+                    &mut out.masks.front,
+                    &mut out.masks.front_fit,
+                ),
+                View::Side => (
+                    &mut self.side,
+                    side,
+                    &mut out.side,
+                    &mut out.masks.side,
+                    &mut out.masks.side_fit,
+                ),
             };
             let ts = Instant::now();
             let stats = state
@@ -382,6 +412,7 @@ impl SilhouetteExecutor {
             let spans_filled = outline_view(state, frame, mask, &stats, view, &self.opts, analysis);
             to_view_plane(state, self.calib.camera(view), view, analysis);
             rebuild_target(state, mask, spans_filled, analysis);
+            soft_copy(state, mask, spans_filled, fit_mask);
             timings.contour_ms += ms(tc);
         }
         let tl = Instant::now();
@@ -530,6 +561,16 @@ fn rebuild_target(
         let v = &mut mask.data[i as usize];
         analysis.stats.person_px -= (*v != 0) as u64;
         *v = 0;
+    }
+}
+
+/// The fitter's mask: the final binary mask, with the ends of the spans filled from the
+/// sub-pixel outline (the fill's crossings, still in `state.fill_scratch`) on ramps.
+fn soft_copy(state: &ViewState, mask: &Mask, spans_filled: bool, out: &mut Vec<u8>) {
+    out.clear();
+    out.extend_from_slice(&mask.data);
+    if spans_filled {
+        contour::soften_span_ends(&state.fill_scratch, mask.width, out);
     }
 }
 

@@ -17,7 +17,7 @@ pub mod side_limbs;
 pub mod uncertainty;
 
 use crate::body::ShapeLibrary;
-use crate::camera::StationCalibration;
+use crate::camera::{StationCalibration, View};
 use crate::fit::correspond::MaskRef;
 use crate::fit::sections::{SideOccluder, MAX_SIDE_OCCLUDERS};
 use crate::fit::{FitOptions, FitStats, Fitter, Observation};
@@ -456,16 +456,20 @@ impl StationProcessor {
             return s;
         };
         let masks = &result.masks;
-        let front = MaskRef {
-            width: masks.front.width,
-            height: masks.front.height,
-            data: &masks.front.data,
+        let fit_mask = |view| {
+            let (m, soft) = masks.fit_mask(view);
+            MaskRef {
+                width: m.width,
+                height: m.height,
+                data: if soft.len() == m.data.len() {
+                    soft
+                } else {
+                    &m.data
+                },
+            }
         };
-        let side = side_seen.then_some(MaskRef {
-            width: masks.side.width,
-            height: masks.side.height,
-            data: &masks.side.data,
-        });
+        let front = fit_mask(View::Front);
+        let side = side_seen.then(|| fit_mask(View::Side));
         let mut notes = Vec::new();
         let first = self.follow_pose(result, &mut notes);
         if side_seen {

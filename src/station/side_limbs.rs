@@ -186,6 +186,8 @@ impl SideLimbs {
                         a: p,
                         b: q,
                         radius: *r,
+                        x: *x,
+                        eye: side_camera.center_in_station(),
                     });
                 }
             }
