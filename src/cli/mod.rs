@@ -118,6 +118,10 @@ pub struct ReplayArgs {
     /// Frame format of --record.
     #[arg(long, value_enum, default_value = "png", requires = "record")]
     pub record_format: crate::recording::FrameFormat,
+    /// Write the station's final silhouettes of every frame pair after the backdrop
+    /// (`front/NNNNNN.png`, `side/NNNNNN.png`) into this folder, to look at what was fitted.
+    #[arg(long, value_name = "DIR")]
+    pub masks_out: Option<PathBuf>,
     #[command(flatten)]
     pub fit: FitCliOptions,
 }
@@ -583,6 +587,7 @@ pub fn run_replay(args: &ReplayArgs) -> anyhow::Result<()> {
     if opts.stature_m.is_none() {
         opts.stature_m = source.recording().metadata().stature_m;
     }
+    opts.masks_out = args.masks_out.clone();
     #[cfg_attr(not(feature = "gui"), allow(unused_variables))]
     let backdrop_frames = opts.backdrop_frames;
     let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;

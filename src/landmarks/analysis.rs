@@ -498,6 +498,93 @@ impl ContourRange {
     }
 }
 
+/// The side view's trunk depth over the front view's trunk breadth at the levels of
+/// [`trunk_asymmetry`] (both plane contours in metres, heights from the floor): the
+/// lower quartile over the levels; or, when less, the side view's extent over the wider
+/// thigh's breadth below the crotch (median over its levels). The breadth is the front outline's interval around
+/// the trunk's axis (the arms apart from it), the depth the side outline's whole extent
+/// at that height (an arm in front of the trunk only adds to it). A side view that lost
+/// the hips or the belly to the backdrop shows a trunk shallower than any adult's. None
+/// without the front's landmarks or a side outline.
+pub fn side_depth_ratio(
+    front: &[DVec2],
+    f: &FrontFeatures,
+    side: &[DVec2],
+    scratch: &mut Vec<Crossing>,
+) -> Option<f64> {
+    if side.len() < 3 {
+        return None;
+    }
+    let (top, crotch) = (front[f.head_top?], front[f.crotch?]);
+    let armpit_y = front[f.armpit_left?].y.min(front[f.armpit_right?].y);
+    let span = armpit_y - crotch.y;
+    if span <= 0.0 || top.y <= crotch.y {
+        return None;
+    }
+    let mut ratios = [0.0f64; TRUNK_LEVELS];
+    let mut n = 0;
+    for k in 0..TRUNK_LEVELS {
+        let t = TRUNK_SKIP_LOW
+            + (1.0 - TRUNK_SKIP_LOW - TRUNK_SKIP_HIGH) * (k as f64 + 0.5) / TRUNK_LEVELS as f64;
+        let v = crotch.y + t * span;
+        let axis = crotch.x + (top.x - crotch.x) * (v - crotch.y) / (top.y - crotch.y);
+        zones::crossings(front, v, scratch);
+        let i = scratch.iter().position(|c| c.u > axis).unwrap_or(0);
+        if i % 2 == 0 {
+            // The axis outside the front outline: that view's fault, judged elsewhere.
+            continue;
+        }
+        let breadth = scratch[i].u - scratch[i - 1].u;
+        zones::crossings(side, v, scratch);
+        let depth = match (scratch.first(), scratch.last()) {
+            (Some(a), Some(b)) => b.u - a.u,
+            _ => 0.0,
+        };
+        if breadth > 0.0 {
+            ratios[n] = depth / breadth;
+            n += 1;
+        }
+    }
+    let r = &mut ratios[..n];
+    r.sort_by(f64::total_cmp);
+    let trunk = r.get(n / 4).copied()?;
+    // The thighs: the side view's extent over the wider thigh of the front view (the
+    // side view sees both thighs as one), median over the levels below the crotch.
+    let mut thighs = [0.0f64; THIGH_LEVELS];
+    let mut m = 0;
+    for k in 0..THIGH_LEVELS {
+        let v = crotch.y
+            - f.h
+                * (THIGH_FROM_H
+                    + (THIGH_TO_H - THIGH_FROM_H) * k as f64 / (THIGH_LEVELS - 1) as f64);
+        zones::crossings(front, v, scratch);
+        let i = scratch.iter().position(|c| c.u > crotch.x).unwrap_or(0);
+        if i % 2 == 1 || i < 2 || i + 1 >= scratch.len() {
+            // The crotch's column inside the outline (legs together) or a leg missing.
+            continue;
+        }
+        let breadth = (scratch[i - 1].u - scratch[i - 2].u).max(scratch[i + 1].u - scratch[i].u);
+        zones::crossings(side, v, scratch);
+        let depth = match (scratch.first(), scratch.last()) {
+            (Some(a), Some(b)) => b.u - a.u,
+            _ => 0.0,
+        };
+        if breadth > 0.0 {
+            thighs[m] = depth / breadth;
+            m += 1;
+        }
+    }
+    let t = &mut thighs[..m];
+    t.sort_by(f64::total_cmp);
+    Some(t.get(m / 2).map_or(trunk, |&t| t.min(trunk)))
+}
+
+/// Levels below the crotch where [`side_depth_ratio`] compares the thighs, from
+/// `THIGH_FROM_H` to `THIGH_TO_H` head lengths (stature / 7) below it.
+const THIGH_LEVELS: usize = 5;
+const THIGH_FROM_H: f64 = 0.3;
+const THIGH_TO_H: f64 = 0.9;
+
 /// Levels sampled by [`trunk_asymmetry`] between the crotch and the armpits.
 const TRUNK_LEVELS: usize = 16;
 /// Fractions of the crotch-to-armpit height left out at each end (the crotch's own
@@ -548,4 +635,72 @@ pub fn trunk_asymmetry(
     let v = &mut values[..n];
     v.sort_by(f64::total_cmp);
     Some(v[n / 2])
+}
+
+#[cfg(test)]
+mod side_depth_tests {
+    use super::*;
+
+    /// A front outline (CCW, metres): legs from the floor to a crotch at 0.8 m, a trunk
+    /// 0.34 m broad up to armpits at 1.35 m, a head to 1.7 m; and its features.
+    fn front() -> (Vec<DVec2>, FrontFeatures) {
+        let p = [
+            (-0.17, 0.0),
+            (-0.02, 0.0),
+            (0.0, 0.8),
+            (0.02, 0.0),
+            (0.17, 0.0),
+            (0.17, 1.35),
+            (0.05, 1.45),
+            (0.0, 1.7),
+            (-0.05, 1.45),
+            (-0.17, 1.35),
+        ];
+        let f = FrontFeatures {
+            head_top: Some(7),
+            stature: 1.7,
+            center: DVec2::new(0.0, 0.85),
+            h: 1.7 / 7.0,
+            crotch: Some(2),
+            armpit_left: Some(5),
+            armpit_right: Some(9),
+            ..Default::default()
+        };
+        (p.iter().map(|&(x, y)| DVec2::new(x, y)).collect(), f)
+    }
+
+    /// A side outline: legs `legs` deep (both as one), a trunk 0.24 m deep.
+    fn side(legs: f64) -> Vec<DVec2> {
+        let h = legs / 2.0;
+        [
+            (-h, 0.0),
+            (h, 0.0),
+            (h, 0.8),
+            (0.12, 0.8),
+            (0.12, 1.35),
+            (0.03, 1.7),
+            (-0.12, 1.35),
+            (-0.12, 0.8),
+            (-h, 0.8),
+        ]
+        .iter()
+        .map(|&(x, y)| DVec2::new(x, y))
+        .collect()
+    }
+
+    #[test]
+    fn a_side_view_that_lost_the_thighs_is_shallower_than_any_adult() {
+        let (f, ff) = front();
+        let min = crate::landmarks::VerdictOptions::default().min_side_depth_ratio;
+        let mut scratch = Vec::new();
+        // Whole: the trunk's 0.24 over 0.34 is the least ratio.
+        let whole = side_depth_ratio(&f, &ff, &side(0.17), &mut scratch).expect("measured");
+        assert!((whole - 0.24 / 0.34).abs() < 0.01, "{whole}");
+        assert!(whole > min);
+        // The thighs lost to the backdrop down to 4 cm of depth: about 0.24 of a thigh.
+        let lost = side_depth_ratio(&f, &ff, &side(0.04), &mut scratch).expect("measured");
+        assert!(lost < min && lost > 0.2, "{lost}");
+        // No side outline: not measured.
+        assert_eq!(side_depth_ratio(&f, &ff, &[], &mut scratch), None);
+    }
 }

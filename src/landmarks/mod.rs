@@ -254,6 +254,14 @@ impl Verdict {
             Verdict::OverExposed { view } => {
                 format!("The {} camera's picture is too bright.", view.name())
             }
+            // The station measures from the front view alone when the side view lost
+            // part of the body (`station::StationProcessor`).
+            Verdict::BlendsIntoBackdrop { view: View::Side } => {
+                "Part of the body blends into the backdrop in the side camera's picture: \
+                 measuring from the front camera alone (depths from the shape library, \
+                 wider ±)."
+                    .into()
+            }
             Verdict::BlendsIntoBackdrop { view } => format!(
                 "Part of the body blends into the backdrop in the {} camera's picture: \
                  clothing in a colour that stands out from the backdrop is needed to measure.",
@@ -295,6 +303,11 @@ pub struct VerdictOptions {
     /// the body is taken to have blended into the backdrop. A standing trunk is
     /// symmetric about its axis to a few percent of its width; a missing side is tens.
     pub max_trunk_asymmetry: f64,
+    /// The side view's trunk depth over the front view's trunk breadth
+    /// ([`analysis::side_depth_ratio`]) under which the side view has lost part of the
+    /// person to the backdrop. Real adults are deeper: over ANSUR II's 6,068 the least
+    /// buttock depth over hip breadth is 0.544, waist depth over waist breadth 0.564.
+    pub min_side_depth_ratio: f64,
 }
 
 impl Default for VerdictOptions {
@@ -307,6 +320,7 @@ impl Default for VerdictOptions {
             second_person_ratio: 0.15,
             off_mark_m: 0.10,
             max_trunk_asymmetry: 0.15,
+            min_side_depth_ratio: 0.45,
         }
     }
 }
@@ -331,6 +345,9 @@ pub struct StationLandmarks {
     /// Left-right asymmetry of the trunk in the front view (see
     /// [`analysis::trunk_asymmetry`]); None when it could not be measured.
     pub trunk_asymmetry: Option<f64>,
+    /// The side view's trunk depth over the front view's breadth, lower quartile over
+    /// the trunk's levels ([`analysis::side_depth_ratio`]); None when not measured.
+    pub side_depth_ratio: Option<f64>,
 }
 
 impl StationLandmarks {

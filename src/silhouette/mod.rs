@@ -432,12 +432,21 @@ impl SilhouetteExecutor {
         out.landmarks.verdicts.clear();
         out.landmarks.stature_m = 0.0;
         out.landmarks.trunk_asymmetry = None;
+        out.landmarks.side_depth_ratio = None;
         // Without a side frame the side axis is empty and the front view's points are
         // lifted onto z = 0.
         if !out.front.contour.is_empty() && (!out.side.contour.is_empty() || !side_seen) {
             let ff = analyse_front(&out.front.plane);
             out.landmarks.trunk_asymmetry =
                 analysis::trunk_asymmetry(&out.front.plane, &ff, &mut self.crossings);
+            if side_seen {
+                out.landmarks.side_depth_ratio = analysis::side_depth_ratio(
+                    &out.front.plane,
+                    &ff,
+                    &out.side.plane,
+                    &mut self.crossings,
+                );
+            }
             let sf = analyse_side(&out.side.plane);
             lifting::lift_all(
                 &self.calib,
@@ -457,6 +466,18 @@ impl SilhouetteExecutor {
             out.landmarks
                 .verdicts
                 .push(Verdict::BlendsIntoBackdrop { view: View::Front });
+        }
+        if crate::fit::debug_enabled() {
+            eprintln!("side depth ratio {:?}", out.landmarks.side_depth_ratio);
+        }
+        if out
+            .landmarks
+            .side_depth_ratio
+            .is_some_and(|r| r < self.opts.verdicts.min_side_depth_ratio)
+        {
+            out.landmarks
+                .verdicts
+                .push(Verdict::BlendsIntoBackdrop { view: View::Side });
         }
     }
 }

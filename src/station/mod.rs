@@ -354,6 +354,25 @@ impl StationProcessor {
             self.said_person_masks = true;
             notes.extend(self.person_masks.unavailable.take());
         }
+        // A side view that lost part of the person to the backdrop (a trunk shallower
+        // than any adult's) would fit a body without hips: that frame is measured from
+        // the front view alone, as without a side camera, and said.
+        let side_lost = Verdict::BlendsIntoBackdrop { view: View::Side };
+        let side_frame = if result.landmarks.verdicts.contains(&side_lost) {
+            if let Err(e) = self
+                .silhouettes
+                .process_into(&pair.front, no_frame, &mut result)
+            {
+                self.silhouette_result = result;
+                let mut s = self.snapshot(pair.index, Phase::Guiding, None);
+                s.messages.push(format!("frame skipped: {e}"));
+                return s;
+            }
+            notes.push(side_lost.message());
+            no_frame
+        } else {
+            side_frame
+        };
         // Not measured while the outline moves (someone walking behind, the shopper
         // moving): see `motion`.
         let before = result.landmarks.verdicts.len();
@@ -474,7 +493,8 @@ impl StationProcessor {
         let first = self.follow_pose(result, &mut notes);
         if side_seen {
             obs.side_occluders = self.side_arms(side_frame, result, timer, &mut notes);
-        } else {
+        } else if !(self.opts.views == ViewSet::Both && pair.has_side()) {
+            // (A side frame that lost the body is said as its verdict.)
             notes.push(ONE_VIEW_MESSAGE.to_string());
         }
         let fit = self
