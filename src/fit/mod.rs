@@ -252,6 +252,9 @@ pub struct Fitter {
     vertex_targets: Vec<Option<DVec3>>,
     /// The avatar before a warm refit (restored when the refit diverges).
     backup: Vec<DVec3>,
+    /// Tests: the next decode fails as diverged, its positions left not finite.
+    #[cfg(test)]
+    fail_next_decode: bool,
     /// Rasterised silhouette of the candidate (first fit only).
     raster: Vec<u8>,
     /// The library bodies' mean depths relative to their toes (a fit without the side
@@ -302,6 +305,8 @@ impl Fitter {
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
             vertex_targets: Vec::new(),
             backup: Vec::new(),
+            #[cfg(test)]
+            fail_next_decode: false,
             raster: Vec::new(),
             depth_offsets,
         })
@@ -419,7 +424,12 @@ impl Fitter {
                 };
                 self.first_fit(calib, front, side, obs, fitted.as_ref())?;
                 let t1 = std::time::Instant::now();
-                self.rounds(views, false, rounds, &mut stats)?;
+                if let Err(e) = self.rounds(views, false, rounds, &mut stats) {
+                    // A diverged decode leaves no body to refit: the next frame chooses
+                    // one afresh.
+                    self.subject = None;
+                    return Err(e);
+                }
                 if debug_enabled() {
                     eprintln!(
                         "pass {pass}: setup {:.1} ms, rounds {:.1} ms",
@@ -437,7 +447,15 @@ impl Fitter {
             if let Some(s) = &self.subject {
                 self.backup.clone_from(&s.positions);
             }
-            self.rounds(views, true, 1, &mut stats)?;
+            let refit = self.rounds(views, true, 1, &mut stats);
+            if let Err(e) = refit {
+                // A diverged decode leaves its positions non-finite or kilometres away:
+                // the last good avatar stays (on screen, and as the next frame's start).
+                if let Some(s) = self.subject.as_mut() {
+                    s.positions.clone_from(&self.backup);
+                }
+                return Err(e);
+            }
             if let Some(s) = self.subject.as_mut() {
                 if let Some(why) = s.implausible() {
                     // Keep the last good avatar on screen and in the measurements.
@@ -582,6 +600,11 @@ impl Fitter {
             }
             self.target_buf
                 .extend(s.pinned.iter().map(|&v| s.rest.positions[v as usize]));
+            #[cfg(test)]
+            if std::mem::take(&mut self.fail_next_decode) {
+                s.positions.iter_mut().for_each(|p| *p = DVec3::NAN);
+                return Err(FitError::Deform("injected divergence".into()));
+            }
             let solves = if warm { 1 } else { FIRST_FIT_SOLVES };
             for _ in 0..solves {
                 let rep = s
@@ -919,6 +942,83 @@ mod tests {
         let mut nan = deformed;
         nan[5].z = f64::NAN;
         assert!(diverged(&nan, &candidate).is_some());
+    }
+
+    /// A refit whose decode diverges keeps the last good avatar (the next frame starts
+    /// from it and fits again); a first fit that diverges leaves no body, and the next
+    /// frame chooses one afresh.
+    #[test]
+    fn a_diverged_decode_keeps_the_last_good_avatar() {
+        let dir = std::env::temp_dir().join(format!("fitstation-diverge-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let rec = dir.join("rec");
+        let mut cfg = crate::synth::SynthConfig::from_seed(7);
+        cfg.empty_frames = 10;
+        cfg.subject_frames = 1;
+        cfg.format = crate::recording::FrameFormat::Png;
+        crate::synth::render_recording(&cfg, &rec).expect("render");
+        let truth = crate::synth::load_truth(&crate::synth::truth_dir(&rec)).expect("truth");
+        let calib = StationCalibration::load(&rec.join("station.yaml")).expect("calibration");
+        let mask = |view: &str| {
+            let p = crate::synth::truth_dir(&rec).join(format!("masks/{view}/000010.png"));
+            let img = image::open(p).expect("mask").to_luma8();
+            (img.width(), img.height(), img.into_raw())
+        };
+        let (f, s) = (mask("front"), mask("side"));
+        let views = || {
+            (
+                MaskRef {
+                    width: f.0,
+                    height: f.1,
+                    data: &f.2,
+                },
+                MaskRef {
+                    width: s.0,
+                    height: s.1,
+                    data: &s.2,
+                },
+            )
+        };
+        let crotch = DVec3::from_array(truth.landmarks["crotch"]);
+        let obs = Observation::new(
+            truth.measurements_mm["stature"] / 1000.0,
+            crotch + DVec3::new(0.0, 0.08, 0.0),
+        );
+        let library = Arc::new(ShapeLibrary::load_default().expect("the bundled shape library"));
+        let mut fitter = Fitter::new(library, FitOptions::default()).expect("fitter");
+        let (front, side) = views();
+        let good = fitter
+            .fit(&calib, front, side, &obs)
+            .expect("first fit")
+            .0
+            .to_vec();
+        fitter.fail_next_decode = true;
+        let (front, side) = views();
+        assert!(fitter.fit(&calib, front, side, &obs).is_err());
+        let kept = &fitter
+            .subject
+            .as_ref()
+            .expect("the subject is kept")
+            .positions;
+        assert_eq!(kept, &good, "the last good avatar is restored");
+        let (front, side) = views();
+        let next = fitter
+            .fit(&calib, front, side, &obs)
+            .expect("the next refit")
+            .0;
+        assert!(next.iter().all(|p| p.is_finite()));
+        // A first fit that diverges: no body is left to refit from.
+        fitter.reset();
+        fitter.fail_next_decode = true;
+        let (front, side) = views();
+        assert!(fitter.fit(&calib, front, side, &obs).is_err());
+        assert!(fitter.subject.is_none());
+        let (front, side) = views();
+        assert!(
+            fitter.fit(&calib, front, side, &obs).is_ok(),
+            "chosen afresh"
+        );
+        std::fs::remove_dir_all(&dir).ok();
     }
 
     /// The macro-parameter refinement recovers a library body from its own descriptor,
