@@ -192,6 +192,9 @@ impl BackgroundModel {
         self.join_pieces(body);
         if self.opts.open_holes {
             let (coarse, zone) = (&self.coarse, &self.coarse_model.zone);
+            // The backdrop seen through a hole, unless the person model is sure it is the
+            // person (a white shirt on a white wall leaves holes of the wall's colour).
+            let core = |x: usize, y: usize| self.prior.as_ref().is_some_and(|p| p.in_core(x, y));
             imgproc::fill_holes_selective(
                 &mut self.coarse_body,
                 cw as u32,
@@ -200,10 +203,11 @@ impl BackgroundModel {
                 &mut self.hole_evidence,
                 |y, x0, x1| {
                     let row = y * cw;
-                    coarse[row + x0..row + x1]
-                        .iter()
-                        .zip(&zone[row + x0..row + x1])
-                        .filter(|&(&c, &z)| c == 0 || (c == WEAK && z != 0))
+                    (x0..x1)
+                        .filter(|&x| {
+                            let (c, z) = (coarse[row + x], zone[row + x]);
+                            (c == 0 || (c == WEAK && z != 0)) && !core(x, y)
+                        })
                         .count() as u64
                 },
                 OPEN_HOLE_MIN_CELLS,

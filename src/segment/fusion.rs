@@ -215,6 +215,29 @@ fn restore_slivers(
     kept
 }
 
+/// The least 8-bit probability of the prior's core (p >= 0.99): the network's inside,
+/// away from the soft band (tens of cells wide on a person 600 cells tall) over which it
+/// falls to nothing at the outline.
+const CORE_LEVEL: u8 = 253;
+/// Erosions of the [`CORE_LEVEL`] region that leave the core: the network's outline may
+/// stand a little off the person's, and a gap it blurred shut (a hand before the belly,
+/// the space between the arm and the trunk) is never that confident that wide.
+const CORE_STEPS: usize = 3;
+
+/// The core of a prior box `bw x bh` of probabilities `prob` (see [`PersonPrior`]).
+fn core_of(prob: &[u8], bw: usize, bh: usize) -> Vec<u8> {
+    let mut a: Vec<u8> = prob
+        .iter()
+        .map(|&p| if p >= CORE_LEVEL { MASK_ON } else { 0 })
+        .collect();
+    let (mut b, mut tmp) = (Vec::new(), Vec::new());
+    for _ in 0..CORE_STEPS {
+        imgproc::erode3x3(&a, bw, bh, &mut b, &mut tmp);
+        std::mem::swap(&mut a, &mut b);
+    }
+    a
+}
+
 /// A learned person probability on the segmentation's coarse grid, inside a box of cells.
 #[derive(Debug, Clone, PartialEq)]
 pub struct PersonPrior {
@@ -228,6 +251,9 @@ pub struct PersonPrior {
     y1: usize,
     /// Probabilities of the box's cells, 0..255, row-major.
     prob: Vec<u8>,
+    /// The box's cells deep inside the person ([`MASK_ON`]): at least [`CORE_LEVEL`]
+    /// throughout the square of [`CORE_STEPS`] cells around them.
+    core: Vec<u8>,
 }
 
 impl PersonPrior {
@@ -260,6 +286,7 @@ impl PersonPrior {
             y0,
             x1,
             y1,
+            core: core_of(&out, x1 - x0, y1 - y0),
             prob: out,
         }
     }
@@ -271,6 +298,16 @@ impl PersonPrior {
             return 0;
         }
         self.prob[(cy - self.y0) * (self.x1 - self.x0) + cx - self.x0]
+    }
+
+    /// True when coarse cell `(cx, cy)` is in the prior's core: deep inside what the
+    /// network is sure is the person.
+    #[inline]
+    pub fn in_core(&self, cx: usize, cy: usize) -> bool {
+        if cx < self.x0 || cx >= self.x1 || cy < self.y0 || cy >= self.y1 {
+            return false;
+        }
+        self.core[(cy - self.y0) * (self.x1 - self.x0) + cx - self.x0] != 0
     }
 
     /// The box of cells holding the prior, `(x0, y0, x1, y1)` (max exclusive).
@@ -555,6 +592,74 @@ mod tests {
         let wrong = PersonPrior::from_probability(32, 24, shirt, |_, _| 1.0);
         assert!(model.set_person_prior(Some(wrong)).is_err());
         assert!(model.person_prior().is_none());
+    }
+
+    /// A patch of a well-seen body in exactly the backdrop's colour (a white shirt's
+    /// front on a white wall: only the noise tells them apart, which no fusion rule can
+    /// use) is a hole that looks like the backdrop seen through a gap. Where the network
+    /// is sure of the person around it (its core) the hole is the person's and filled; a
+    /// merely likely inside (p = 0.97) leaves it open, as does the backdrop model alone.
+    #[test]
+    fn a_hole_the_network_is_sure_of_is_filled() {
+        let empty = RgbImage::from_pixel(96, 96, Rgb([200, 200, 196]));
+        let mut frame = empty.clone();
+        for y in 6..90 {
+            for x in 24..72 {
+                let patch = (36..60).contains(&x) && (40..64).contains(&y);
+                if !patch {
+                    frame.put_pixel(x, y, Rgb([60, 40, 30])); // the well-seen body
+                }
+            }
+        }
+        let opts = SegmentOptions {
+            min_person_fraction: 0.01,
+            adapt_rate: 0.0,
+            ..SegmentOptions::default()
+        };
+        let all = PixelBox {
+            min_x: 0,
+            min_y: 0,
+            max_x: 96,
+            max_y: 96,
+        };
+        let segment_with = |inside: Option<f32>| {
+            let mut model = BackgroundModel::new(96, 96, opts);
+            model.learn(&empty).expect("learn");
+            if let Some(p) = inside {
+                let prior = PersonPrior::from_probability(96, 96, all, |x, y| {
+                    if (24.0..72.0).contains(&x) && (6.0..90.0).contains(&y) {
+                        p
+                    } else {
+                        0.0
+                    }
+                });
+                model.set_person_prior(Some(prior)).expect("prior fits");
+            }
+            let mut mask = Mask::default();
+            model.segment(&frame, &mut mask).expect("segment");
+            mask
+        };
+        let (alone, likely, sure) = (
+            segment_with(None),
+            segment_with(Some(0.97)),
+            segment_with(Some(1.0)),
+        );
+        for m in [&alone, &likely, &sure] {
+            assert!(m.get(30, 50) && m.get(48, 20), "the body is seen");
+        }
+        assert!(
+            !alone.get(48, 52),
+            "alone, the patch is backdrop seen through"
+        );
+        assert!(!likely.get(48, 52), "p = 0.97 is no core");
+        assert!(
+            sure.get(48, 52) && sure.get(38, 42),
+            "the network is sure: filled"
+        );
+        assert!(
+            !sure.get(20, 50) && !sure.get(76, 50),
+            "nothing outside the body"
+        );
     }
 
     #[test]
