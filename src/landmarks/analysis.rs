@@ -515,33 +515,17 @@ pub fn side_depth_ratio(
     if side.len() < 3 {
         return None;
     }
-    let (top, crotch) = (front[f.head_top?], front[f.crotch?]);
-    let armpit_y = front[f.armpit_left?].y.min(front[f.armpit_right?].y);
-    let span = armpit_y - crotch.y;
-    if span <= 0.0 || top.y <= crotch.y {
-        return None;
-    }
     let mut ratios = [0.0f64; TRUNK_LEVELS];
     let mut n = 0;
-    for k in 0..TRUNK_LEVELS {
-        let t = TRUNK_SKIP_LOW
-            + (1.0 - TRUNK_SKIP_LOW - TRUNK_SKIP_HIGH) * (k as f64 + 0.5) / TRUNK_LEVELS as f64;
-        let v = crotch.y + t * span;
-        let axis = crotch.x + (top.x - crotch.x) * (v - crotch.y) / (top.y - crotch.y);
+    for (v, axis) in trunk_levels(front, f)? {
         zones::crossings(front, v, scratch);
-        let i = scratch.iter().position(|c| c.u > axis).unwrap_or(0);
-        if i % 2 == 0 {
-            // The axis outside the front outline: that view's fault, judged elsewhere.
+        // The axis outside the front outline: that view's fault, judged elsewhere.
+        let Some((a, b)) = interval_around(scratch, axis) else {
             continue;
-        }
-        let breadth = scratch[i].u - scratch[i - 1].u;
-        zones::crossings(side, v, scratch);
-        let depth = match (scratch.first(), scratch.last()) {
-            (Some(a), Some(b)) => b.u - a.u,
-            _ => 0.0,
         };
-        if breadth > 0.0 {
-            ratios[n] = depth / breadth;
+        let depth = extent_at(side, v, scratch);
+        if b > a {
+            ratios[n] = depth / (b - a);
             n += 1;
         }
     }
@@ -550,6 +534,7 @@ pub fn side_depth_ratio(
     let trunk = r.get(n / 4).copied()?;
     // The thighs: the side view's extent over the wider thigh of the front view (the
     // side view sees both thighs as one), median over the levels below the crotch.
+    let crotch = front[f.crotch?];
     let mut thighs = [0.0f64; THIGH_LEVELS];
     let mut m = 0;
     for k in 0..THIGH_LEVELS {
@@ -564,11 +549,7 @@ pub fn side_depth_ratio(
             continue;
         }
         let breadth = (scratch[i - 1].u - scratch[i - 2].u).max(scratch[i + 1].u - scratch[i].u);
-        zones::crossings(side, v, scratch);
-        let depth = match (scratch.first(), scratch.last()) {
-            (Some(a), Some(b)) => b.u - a.u,
-            _ => 0.0,
-        };
+        let depth = extent_at(side, v, scratch);
         if breadth > 0.0 {
             thighs[m] = depth / breadth;
             m += 1;
@@ -577,6 +558,45 @@ pub fn side_depth_ratio(
     let t = &mut thighs[..m];
     t.sort_by(f64::total_cmp);
     Some(t.get(m / 2).map_or(trunk, |&t| t.min(trunk)))
+}
+
+/// The whole extent of polygon `poly` at height `v` (its first crossing to its last; 0
+/// where it has none).
+fn extent_at(poly: &[DVec2], v: f64, scratch: &mut Vec<Crossing>) -> f64 {
+    zones::crossings(poly, v, scratch);
+    match (scratch.first(), scratch.last()) {
+        (Some(a), Some(b)) => b.u - a.u,
+        _ => 0.0,
+    }
+}
+
+/// The inside interval of the sorted crossings `cr` (alternating in and out along u)
+/// that holds `u`; None when `u` lies outside the polygon.
+fn interval_around(cr: &[Crossing], u: f64) -> Option<(f64, f64)> {
+    let i = cr.iter().position(|c| c.u > u).unwrap_or(0);
+    (i % 2 == 1).then(|| (cr[i - 1].u, cr[i].u))
+}
+
+/// The [`TRUNK_LEVELS`] heights between the crotch and the lower armpit of the front
+/// outline `plane` (less [`TRUNK_SKIP_LOW`] and [`TRUNK_SKIP_HIGH`] of that span), each
+/// with the body axis's u there (the line from the crotch to the head top); None without
+/// head top, crotch and armpits.
+fn trunk_levels(plane: &[DVec2], f: &FrontFeatures) -> Option<impl Iterator<Item = (f64, f64)>> {
+    let (top, crotch) = (plane[f.head_top?], plane[f.crotch?]);
+    let armpit_y = plane[f.armpit_left?].y.min(plane[f.armpit_right?].y);
+    let span = armpit_y - crotch.y;
+    if span <= 0.0 || top.y <= crotch.y {
+        return None;
+    }
+    Some((0..TRUNK_LEVELS).map(move |k| {
+        let t = TRUNK_SKIP_LOW
+            + (1.0 - TRUNK_SKIP_LOW - TRUNK_SKIP_HIGH) * (k as f64 + 0.5) / TRUNK_LEVELS as f64;
+        let v = crotch.y + t * span;
+        (
+            v,
+            crotch.x + (top.x - crotch.x) * (v - crotch.y) / (top.y - crotch.y),
+        )
+    }))
 }
 
 /// Levels below the crotch where [`side_depth_ratio`] compares the thighs, from
@@ -606,30 +626,16 @@ pub fn trunk_asymmetry(
     f: &FrontFeatures,
     scratch: &mut Vec<Crossing>,
 ) -> Option<f64> {
-    let (top, crotch) = (plane[f.head_top?], plane[f.crotch?]);
-    let armpit_y = plane[f.armpit_left?].y.min(plane[f.armpit_right?].y);
-    let span = armpit_y - crotch.y;
-    if span <= 0.0 || top.y <= crotch.y {
-        return None;
-    }
     let mut values = [0.0f64; TRUNK_LEVELS];
     let mut n = 0;
-    for k in 0..TRUNK_LEVELS {
-        let t = TRUNK_SKIP_LOW
-            + (1.0 - TRUNK_SKIP_LOW - TRUNK_SKIP_HIGH) * (k as f64 + 0.5) / TRUNK_LEVELS as f64;
-        let v = crotch.y + t * span;
-        let axis = crotch.x + (top.x - crotch.x) * (v - crotch.y) / (top.y - crotch.y);
+    for (v, axis) in trunk_levels(plane, f)? {
         zones::crossings(plane, v, scratch);
-        // The inside interval around the axis: crossings alternate out/in along u. The
-        // axis outside the silhouette means the middle of the trunk is missing: the
+        // The axis outside the silhouette means the middle of the trunk is missing: the
         // largest asymmetry.
-        let i = scratch.iter().position(|c| c.u > axis).unwrap_or(0);
-        values[n] = if i % 2 == 1 {
-            let (l, r) = (axis - scratch[i - 1].u, scratch[i].u - axis);
+        values[n] = interval_around(scratch, axis).map_or(1.0, |(a, b)| {
+            let (l, r) = (axis - a, b - axis);
             (r - l).abs() / (r + l).max(f64::MIN_POSITIVE)
-        } else {
-            1.0
-        };
+        });
         n += 1;
     }
     let v = &mut values[..n];

@@ -369,11 +369,7 @@ impl SilhouetteExecutor {
         let side_seen = crate::pipeline::has_frame(side);
         for view in View::BOTH {
             if view == View::Side && !side_seen {
-                out.side = ViewAnalysis::empty(View::Side);
-                out.masks.side.width = 0;
-                out.masks.side.height = 0;
-                out.masks.side.data.clear();
-                out.masks.side_fit.clear();
+                clear_side(out);
                 continue;
             }
             let (state, frame, analysis, mask, fit_mask) = match view {
@@ -422,6 +418,15 @@ impl SilhouetteExecutor {
         timings.total_ms = ms(t0);
         out.timings = timings;
         Ok(())
+    }
+
+    /// Leaves the side view out of a pair already processed into `out` (its side view
+    /// lost part of the body): the result is the one of a pair without a side frame, the
+    /// front view's segmentation kept as it is.
+    pub fn leave_side_out(&mut self, out: &mut SilhouetteResult) {
+        clear_side(out);
+        self.place_landmarks(out, false);
+        union_verdicts(out);
     }
 
     /// The landmarks of both views lifted into the station frame, with the trunk's
@@ -480,6 +485,15 @@ impl SilhouetteExecutor {
                 .push(Verdict::BlendsIntoBackdrop { view: View::Side });
         }
     }
+}
+
+/// Empties the side view of `out` (no side frame): its analysis, mask and fit mask.
+fn clear_side(out: &mut SilhouetteResult) {
+    out.side = ViewAnalysis::empty(View::Side);
+    out.masks.side.width = 0;
+    out.masks.side.height = 0;
+    out.masks.side.data.clear();
+    out.masks.side_fit.clear();
 }
 
 /// Station verdicts: the union of both views' and the landmarks', without repeats.

@@ -356,18 +356,11 @@ impl StationProcessor {
         }
         // A side view that lost part of the person to the backdrop (a trunk shallower
         // than any adult's) would fit a body without hips: that frame is measured from
-        // the front view alone, as without a side camera, and said.
+        // the front view alone, as without a side camera (the front's segmentation
+        // kept), and said.
         let side_lost = Verdict::BlendsIntoBackdrop { view: View::Side };
         let side_frame = if result.landmarks.verdicts.contains(&side_lost) {
-            if let Err(e) = self
-                .silhouettes
-                .process_into(&pair.front, no_frame, &mut result)
-            {
-                self.silhouette_result = result;
-                let mut s = self.snapshot(pair.index, Phase::Guiding, None);
-                s.messages.push(format!("frame skipped: {e}"));
-                return s;
-            }
+            self.silhouettes.leave_side_out(&mut result);
             notes.push(side_lost.message());
             no_frame
         } else {
