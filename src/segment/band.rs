@@ -102,7 +102,7 @@ impl BackgroundModel {
             let bridged =
                 label == BRIDGED || (label == MASK_ON && self.coarse_model.zone[cy * cw + cx] != 0);
             // Pixels the fusion makes person (see `fusion`).
-            let fused_ratio2 = self.fused_min_ratio2(cx, cy);
+            let (fused_ratio2, shadow_stays) = self.fused_min_ratio2(cx, cy);
             for dy in 0..COARSE as usize {
                 for dx in 0..COARSE as usize {
                     let (x, y) = (cx * COARSE as usize + dx, cy * COARSE as usize + dy);
@@ -112,7 +112,9 @@ impl BackgroundModel {
                         self.band_state[i] = if label == JOINED
                             || self.is_foreground(i, p)
                             || (bridged && self.is_changed(i, p))
-                            || (fused_ratio2.is_finite() && self.ratio2(i, p) >= fused_ratio2)
+                            || (fused_ratio2.is_finite()
+                                && self.ratio2(i, p) >= fused_ratio2
+                                && !(shadow_stays && self.is_darkened(i, p)))
                         {
                             BAND_FG
                         } else {

@@ -19,7 +19,9 @@
 //! 0.95` needs `r >= 0.56`); clothing 15 levels or more off the backdrop has `r` near 1
 //! or more and the learned probability decides; a cell explained as a shadow (`r > 1`)
 //! is person only with `p` above `sigmoid(-cap)`, and on the floor's shadow zone only
-//! with `p >= zone_min_prob`. The rule is evaluated without logarithms: a table gives,
+//! with `p >= zone_min_prob`, and not at all when the backdrop model explains it as a
+//! shadow, unless its column hangs from the person (the floor between the feet lies in
+//! the person's own shadow, and the network blurs over it). The rule is evaluated without logarithms: a table gives,
 //! per 8-bit probability, the least `r^2` that makes a cell person ([`FusionRule`]).
 //! Last, the fused cells are opened by a 3x3 square ([`OPEN_STEPS`]): lost clothing is a
 //! broad region, while the optics' halo of a bright hand on a dark backdrop, or a gap
@@ -55,6 +57,11 @@ pub(super) struct FuseScratch {
     a: Vec<u8>,
     b: Vec<u8>,
     tmp: Vec<u8>,
+    /// The prior box's cells whose floor shadow stays floor (1), at the last frame.
+    spared: Vec<u8>,
+    /// Per column of the box: its run of changed, fused or core cells reaches a person
+    /// cell outside the shadow zone.
+    anchored: Vec<bool>,
 }
 
 /// Label of a coarse cell made person by the fusion (odd: the majority filter counts
@@ -78,6 +85,12 @@ pub struct FusionOptions {
     /// falls and the learned mask blurs the feet into it), below this probability a cell
     /// is never made person.
     pub zone_min_prob: f32,
+    /// In the shadow zone, a cell the backdrop model explains as shadow (darker, same
+    /// chroma) is made person only when its column hangs from the person (see
+    /// `mark_fused`). The side view's floor between the feet lies in the person's own
+    /// shadow and inside the network's blur of the two feet: fused, it joined the feet
+    /// into one block (1-3 % of the side silhouette's area).
+    pub zone_shadow_stays: bool,
 }
 
 impl Default for FusionOptions {
@@ -88,6 +101,7 @@ impl Default for FusionOptions {
             slope: 12.0,
             cap: 1.5,
             zone_min_prob: 0.9,
+            zone_shadow_stays: true,
         }
     }
 }
@@ -422,49 +436,93 @@ impl BackgroundModel {
     }
 
     /// The fusion rule over the prior's box: fused cells get [`FUSED`] in `coarse` and
-    /// 255 in `scratch.fused`, their former labels in `scratch.before`.
+    /// 255 in `scratch.fused`, their former labels in `scratch.before`; `scratch.spared`
+    /// marks the cells whose shadow stays floor (see [`FusionOptions::zone_shadow_stays`]).
+    ///
+    /// A shadow-explained cell of the zone is still the network's when its column hangs
+    /// from the person: its unbroken run of changed, fused or core cells above reaches a
+    /// person cell outside the zone (a leg in trousers of the floor's hue, as in
+    /// `classify::bridge_columns`). The floor between the two feet of a side view lies
+    /// under the far foot, which stands inside the zone with lit floor above it.
     fn mark_fused(&self, raw: &[u8], coarse: &mut [u8], cw: usize, scratch: &mut FuseScratch) {
         let Some(prior) = &self.prior else {
             return;
         };
         let (w, c) = (self.width as usize, COARSE as usize);
         let (x0, y0, x1, y1) = prior.cell_box();
+        let bw = x1 - x0;
         let g = self.gain;
         let m = &self.coarse_model;
         // Without a calibration the whole frame is zone: no cell is told apart.
         let zoned = !self.zone_everywhere;
+        let spare_shadows = zoned && self.fusion.opts.zone_shadow_stays;
+        scratch.spared.clear();
+        scratch.spared.resize(bw * (y1 - y0), 0);
+        scratch.anchored.clear();
+        scratch.anchored.resize(bw, false);
         for cy in y0..y1 {
-            let prow = &prior.prob[(cy - y0) * (x1 - x0)..(cy - y0 + 1) * (x1 - x0)];
+            let prow = &prior.prob[(cy - y0) * bw..(cy - y0 + 1) * bw];
             for (cx, &pq) in (x0..x1).zip(prow) {
                 let k = cy * cw + cx;
-                let need = self.fusion.min_ratio2_at(pq, zoned && m.zone[k] != 0);
-                if need.is_infinite() || coarse[k] == MASK_ON {
-                    continue;
+                let j = (cy - y0) * bw + cx - x0;
+                let in_zone = zoned && m.zone[k] != 0;
+                let anchored = scratch.anchored[cx - x0];
+                if spare_shadows && in_zone && !anchored {
+                    scratch.spared[j] = 1;
                 }
-                let i = cy * c * w + cx * c;
-                let d = [
-                    raw[3 * i] as f32 - g * m.er[k] as f32,
-                    raw[3 * i + 1] as f32 - g * m.eg[k] as f32,
-                    raw[3 * i + 2] as f32 - g * m.eb[k] as f32,
-                ];
-                let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                if dd >= need * (m.tau2[k] as f32).max(1.0) {
-                    let j = (cy - y0) * (x1 - x0) + cx - x0;
-                    scratch.before[j] = coarse[k];
-                    scratch.fused[j] = MASK_ON;
-                    coarse[k] = FUSED;
+                let need = self.fusion.min_ratio2_at(pq, in_zone);
+                if !need.is_infinite() && coarse[k] != MASK_ON {
+                    let i = cy * c * w + cx * c;
+                    let e = [m.er[k] as f32, m.eg[k] as f32, m.eb[k] as f32];
+                    let d = [
+                        raw[3 * i] as f32 - g * e[0],
+                        raw[3 * i + 1] as f32 - g * e[1],
+                        raw[3 * i + 2] as f32 - g * e[2],
+                    ];
+                    let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                    // The floor's shadow stays floor (changed, explained, darker).
+                    let spared = scratch.spared[j] != 0
+                        && coarse[k] == super::WEAK
+                        && d[0] * e[0] + d[1] * e[1] + d[2] * e[2] < 0.0;
+                    if !spared && dd >= need * (m.tau2[k] as f32).max(1.0) {
+                        scratch.before[j] = coarse[k];
+                        scratch.fused[j] = MASK_ON;
+                        coarse[k] = FUSED;
+                    }
+                }
+                // The column's run: broken by an unchanged cell the fusion left alone
+                // outside the network's core (clothing lost in the backdrop above the
+                // zone, deep inside the person, does not break it), anchored by a person
+                // cell outside the zone.
+                let a = &mut scratch.anchored[cx - x0];
+                match coarse[k] {
+                    0 if !prior.in_core(cx, cy) => *a = false,
+                    MASK_ON | FUSED if !in_zone => *a = true,
+                    _ => {}
                 }
             }
         }
     }
 
     /// The least `r^2` making a pixel of coarse cell `(cx, cy)` person by the fusion
-    /// (infinity without a prior or where it never does).
+    /// (infinity without a prior or where it never does), and whether a pixel the
+    /// backdrop model explains as shadow stays backdrop there (the shadow zone, with
+    /// [`FusionOptions::zone_shadow_stays`]).
     #[inline]
-    pub(super) fn fused_min_ratio2(&self, cx: usize, cy: usize) -> f32 {
+    pub(super) fn fused_min_ratio2(&self, cx: usize, cy: usize) -> (f32, bool) {
         let Some(p) = &self.prior else {
-            return f32::INFINITY;
+            return (f32::INFINITY, false);
         };
+        let (x0, y0, x1, y1) = p.cell_box();
+        let spared = cx >= x0
+            && cx < x1
+            && cy >= y0
+            && cy < y1
+            && self
+                .fuse_scratch
+                .spared
+                .get((cy - y0) * (x1 - x0) + cx - x0)
+                .is_some_and(|&v| v != 0);
         let cw = (self.width as usize).div_ceil(COARSE as usize);
         let in_zone = !self.zone_everywhere
             && self
@@ -472,7 +530,10 @@ impl BackgroundModel {
                 .zone
                 .get(cy * cw + cx)
                 .is_some_and(|&z| z != 0);
-        self.fusion.min_ratio2_at(p.at_cell(cx, cy), in_zone)
+        (
+            self.fusion.min_ratio2_at(p.at_cell(cx, cy), in_zone),
+            spared,
+        )
     }
 }
 
@@ -592,6 +653,107 @@ mod tests {
         let wrong = PersonPrior::from_probability(32, 24, shirt, |_, _| 1.0);
         assert!(model.set_person_prior(Some(wrong)).is_err());
         assert!(model.person_prior().is_none());
+    }
+
+    /// The side view's floor between the two feet lies in the person's own shadow and
+    /// inside the network's blur of the feet. On the shadow zone, such a darkened cell
+    /// stays floor (before, it was fused and joined the feet into one block); a pale
+    /// shoe the backdrop model explains as a brighter exposure, and a shin in trousers of
+    /// the floor's hue that hangs from a thigh seen above the zone, are still the
+    /// network's.
+    #[test]
+    fn the_floors_shadow_between_the_feet_stays_floor() {
+        let floor = [150u8, 140, 120];
+        let empty = RgbImage::from_pixel(96, 96, Rgb(floor));
+        let mut frame = empty.clone();
+        let shade = |k: f32| Rgb(floor.map(|c| (c as f32 * k).round() as u8));
+        for y in 0..96u32 {
+            for x in 0..96u32 {
+                let leg = (40..56).contains(&x) && y < 80;
+                let far_foot = (20..56).contains(&x) && (62..68).contains(&y);
+                let near_foot = (20..56).contains(&x) && (80..88).contains(&y);
+                let gap = (20..40).contains(&x) && (68..80).contains(&y);
+                let pale_toe = (12..20).contains(&x) && (82..88).contains(&y);
+                // A second leg, in trousers of the floor's hue below its knee (y >= 56).
+                let thigh = ((66..78).contains(&x) && (20..56).contains(&y))
+                    || ((40..78).contains(&x) && (20..28).contains(&y));
+                let shin = (66..78).contains(&x) && (56..88).contains(&y);
+                if shin {
+                    frame.put_pixel(x, y, shade(0.7));
+                } else if leg || far_foot || near_foot || thigh {
+                    frame.put_pixel(x, y, Rgb([40, 30, 60]));
+                } else if gap {
+                    frame.put_pixel(x, y, shade(0.7)); // the feet's own shadow
+                } else if pale_toe {
+                    frame.put_pixel(x, y, shade(1.1)); // a pale shoe, explained as exposure
+                }
+            }
+        }
+        let opts = SegmentOptions {
+            min_person_fraction: 0.01,
+            adapt_rate: 0.0,
+            ..SegmentOptions::default()
+        };
+        // The floor (y >= 56) is the shadow zone; the network blurs the feet and the
+        // gap between them into one (p = 0.97 over the whole block).
+        let mut zone = Mask::new(96, 96);
+        zone.data[56 * 96..].fill(MASK_ON);
+        let segment_with = |stays: bool| {
+            let mut model = BackgroundModel::new(96, 96, opts);
+            model.learn(&empty).expect("learn");
+            model.set_shadow_zone(&zone).expect("zone fits");
+            model.set_fusion_options(FusionOptions {
+                zone_shadow_stays: stays,
+                ..FusionOptions::default()
+            });
+            let prior = PersonPrior::from_probability(
+                96,
+                96,
+                PixelBox {
+                    min_x: 0,
+                    min_y: 0,
+                    max_x: 96,
+                    max_y: 96,
+                },
+                |x, y| {
+                    let body = ((38.0..58.0).contains(&x) || (64.0..80.0).contains(&x)) && y < 90.0;
+                    let feet = (10.0..58.0).contains(&x) && (60.0..90.0).contains(&y);
+                    if body || feet {
+                        0.97
+                    } else {
+                        0.01
+                    }
+                },
+            );
+            model.set_person_prior(Some(prior)).expect("prior fits");
+            let mut mask = Mask::default();
+            model.segment(&frame, &mut mask).expect("segment");
+            mask
+        };
+        let gap_px = |m: &Mask| {
+            (68..80)
+                .flat_map(|y| (22..38).map(move |x| (x, y)))
+                .filter(|&(x, y)| m.get(x, y))
+                .count()
+        };
+        let kept = segment_with(true);
+        let fused = segment_with(false);
+        assert!(
+            kept.get(48, 30) && kept.get(30, 64) && kept.get(30, 84),
+            "legs and feet"
+        );
+        assert_eq!(gap_px(&kept), 0, "the shadow between the feet is floor");
+        assert!(
+            gap_px(&fused) > 150,
+            "without the rule it is fused: {}",
+            gap_px(&fused)
+        );
+        assert!(kept.get(15, 85), "the pale shoe is still the network's");
+        // The shin hangs from a thigh seen outside the zone: the network keeps it.
+        assert!(
+            kept.get(72, 70) && kept.get(72, 84),
+            "the floor-hued shin is the person's"
+        );
     }
 
     /// A patch of a well-seen body in exactly the backdrop's colour (a white shirt's

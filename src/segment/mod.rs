@@ -733,6 +733,18 @@ impl BackgroundModel {
         d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > m.radius2()
     }
 
+    /// True when pixel `i` of colour `p` is changed and darker than the model (a shadow,
+    /// when the model does not call it foreground).
+    #[inline(always)]
+    fn is_darkened(&self, i: usize, p: [u8; 3]) -> bool {
+        let m = self.px[i];
+        let e = m.color();
+        let g = self.gain;
+        let d = [0, 1, 2].map(|c| p[c] as f32 - g * e[c]);
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > m.radius2()
+            && d[0] * e[0] + d[1] * e[1] + d[2] * e[2] < 0.0
+    }
+
     /// The sub-pixel edge score of `frame` against this model: colour distance in linear
     /// light (see [`EdgeScorer`]). None when the frame does not fit the model.
     pub fn edge_scorer<'a>(&'a self, frame: &'a RgbImage) -> Option<EdgeScorer<'a>> {
