@@ -184,6 +184,11 @@ pub struct SideOccluder {
 impl SideOccluder {
     /// Whether the point `(y, z)` lies within the capsule widened by `margin`.
     pub fn covers(&self, y: f64, z: f64, margin: f64) -> bool {
+        self.axis_distance(y, z) <= self.radius + margin
+    }
+
+    /// Distance of the point `(y, z)` from the capsule's axis segment, metres.
+    fn axis_distance(&self, y: f64, z: f64) -> f64 {
         let p = glam::DVec2::new(y, z);
         let ab = self.b - self.a;
         let t = if ab.length_squared() > 1e-12 {
@@ -191,19 +196,35 @@ impl SideOccluder {
         } else {
             0.0
         };
-        (self.a + ab * t).distance(p) <= self.radius + margin
+        (self.a + ab * t).distance(p)
+    }
+
+    /// The silhouette point `seen` (station frame, found at its own x) moved along the
+    /// side camera's ray onto the capsule's plane, as `(y, z)`.
+    fn on_plane(&self, seen: DVec3) -> (f64, f64) {
+        let d = seen.x - self.eye.x;
+        let s = (self.x - self.eye.x) / d;
+        if !(d.abs() > 1e-9 && s > 0.0) {
+            return (seen.y, seen.z);
+        }
+        let q = self.eye + (seen - self.eye) * s;
+        (q.y, q.z)
     }
 
     /// Whether the silhouette point `seen` (station frame, found at its own x) lies on
     /// the capsule once moved along the side camera's ray onto the capsule's plane.
     pub fn covers_seen(&self, seen: DVec3, margin: f64) -> bool {
-        let d = seen.x - self.eye.x;
-        let s = (self.x - self.eye.x) / d;
-        if !(d.abs() > 1e-9 && s > 0.0) {
-            return self.covers(seen.y, seen.z, margin);
-        }
-        let q = self.eye + (seen - self.eye) * s;
-        self.covers(q.y, q.z, margin)
+        let (y, z) = self.on_plane(seen);
+        self.covers(y, z, margin)
+    }
+
+    /// Whether the silhouette edge `seen` could be the limb's own outline: on the
+    /// capsule's plane it lies within `margin` of the capsule's surface. An edge deep
+    /// inside the capsule is not the limb's: had the limb been there, its outline would
+    /// stand further out than the edge the view shows.
+    pub fn outline_covers_seen(&self, seen: DVec3, margin: f64) -> bool {
+        let (y, z) = self.on_plane(seen);
+        (self.axis_distance(y, z) - self.radius).abs() <= margin
     }
 }
 
@@ -709,7 +730,7 @@ fn drop_foreign_edges(
                 && occluders
                     .iter()
                     .flatten()
-                    .any(|o| o.covers_seen(seen, OCCLUDER_MARGIN_M));
+                    .any(|o| o.outline_covers_seen(seen, OCCLUDER_MARGIN_M));
             if !(plausible && (on_trend || (known && !in_limb))) {
                 c[side] = None;
             }
@@ -1182,6 +1203,36 @@ mod tests {
         );
         // Beyond the capsule on the far side of the axis stays beyond it.
         assert!(!forearm.covers_seen(DVec3::new(0.0, 0.90, -0.08), 0.01));
+    }
+
+    #[test]
+    fn only_an_edge_on_a_limbs_outline_is_the_limbs() {
+        // An upper arm drawn from keypoints behind the trunk (the capsule of dev varied
+        // subject 22, session 19, whose back edges at the bust were all dropped as the
+        // arm's). A back edge seen 2.2 cm from the arm's axis on its plane lies 2.3 cm
+        // inside its 4.5 cm radius: had the arm been there, its outline would stand
+        // further back than the edge the view showed, so the edge is the trunk's.
+        let upper_arm = SideOccluder {
+            a: glam::DVec2::new(1.3216, -0.1085),
+            b: glam::DVec2::new(1.1400, -0.1511),
+            radius: 0.045,
+            x: 0.3245,
+            eye: DVec3::new(2.5874, 1.3100, -0.0066),
+        };
+        let back = DVec3::new(0.0, 1.15, -0.190);
+        assert!(upper_arm.covers_seen(back, OCCLUDER_MARGIN_M));
+        assert!(!upper_arm.outline_covers_seen(back, OCCLUDER_MARGIN_M));
+        // An edge on the capsule's surface (4.5 cm out on its plane, moved back along the
+        // ray to x = 0), or a little beyond it, is the limb's.
+        let (y, z) = (1.15, -0.1488 - 0.045);
+        let s = (0.0 - upper_arm.eye.x) / (upper_arm.x - upper_arm.eye.x);
+        let on_surface = upper_arm.eye + (DVec3::new(upper_arm.x, y, z) - upper_arm.eye) * s;
+        assert!(upper_arm.outline_covers_seen(on_surface, OCCLUDER_MARGIN_M));
+        let beyond = on_surface - DVec3::new(0.0, 0.0, 0.01);
+        assert!(upper_arm.outline_covers_seen(beyond, OCCLUDER_MARGIN_M));
+        assert!(
+            !upper_arm.outline_covers_seen(beyond - DVec3::new(0.0, 0.0, 0.02), OCCLUDER_MARGIN_M)
+        );
     }
 
     #[test]

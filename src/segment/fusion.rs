@@ -57,11 +57,14 @@ pub(super) struct FuseScratch {
     a: Vec<u8>,
     b: Vec<u8>,
     tmp: Vec<u8>,
-    /// The prior box's cells whose floor shadow stays floor (1), at the last frame.
-    spared: Vec<u8>,
-    /// Per column of the box: its run of changed, fused or core cells reaches a person
-    /// cell outside the shadow zone.
-    anchored: Vec<bool>,
+    /// The zone's shadow-explained cells the fusion rule would make person, `(cx, cy)`,
+    /// row-major (see `mark_fused`).
+    shadows: Vec<(u32, u32)>,
+    /// Those whose shadow stayed floor at the last frame, row-major.
+    spared: Vec<(u32, u32)>,
+    /// Per column of the prior's box: the last shadow cell settled and whether the
+    /// column hangs from the person there.
+    column_hangs: Vec<Option<(u32, bool)>>,
 }
 
 /// Label of a coarse cell made person by the fusion (odd: the majority filter counts
@@ -443,7 +446,9 @@ impl BackgroundModel {
     /// from the person: its unbroken run of changed, fused or core cells above reaches a
     /// person cell outside the zone (a leg in trousers of the floor's hue, as in
     /// `classify::bridge_columns`). The floor between the two feet of a side view lies
-    /// under the far foot, which stands inside the zone with lit floor above it.
+    /// under the far foot, which stands inside the zone with lit floor above it. Such
+    /// cells are set aside in the pass over the box and settled after it, each by a walk up
+    /// its column (they never change a run themselves: fused or not, they are changed).
     fn mark_fused(&self, raw: &[u8], coarse: &mut [u8], cw: usize, scratch: &mut FuseScratch) {
         let Some(prior) = &self.prior else {
             return;
@@ -456,50 +461,80 @@ impl BackgroundModel {
         // Without a calibration the whole frame is zone: no cell is told apart.
         let zoned = !self.zone_everywhere;
         let spare_shadows = zoned && self.fusion.opts.zone_shadow_stays;
-        scratch.spared.clear();
-        scratch.spared.resize(bw * (y1 - y0), 0);
-        scratch.anchored.clear();
-        scratch.anchored.resize(bw, false);
+        scratch.shadows.clear();
         for cy in y0..y1 {
             let prow = &prior.prob[(cy - y0) * bw..(cy - y0 + 1) * bw];
             for (cx, &pq) in (x0..x1).zip(prow) {
                 let k = cy * cw + cx;
-                let j = (cy - y0) * bw + cx - x0;
                 let in_zone = zoned && m.zone[k] != 0;
-                let anchored = scratch.anchored[cx - x0];
-                if spare_shadows && in_zone && !anchored {
-                    scratch.spared[j] = 1;
-                }
                 let need = self.fusion.min_ratio2_at(pq, in_zone);
-                if !need.is_infinite() && coarse[k] != MASK_ON {
-                    let i = cy * c * w + cx * c;
-                    let e = [m.er[k] as f32, m.eg[k] as f32, m.eb[k] as f32];
-                    let d = [
-                        raw[3 * i] as f32 - g * e[0],
-                        raw[3 * i + 1] as f32 - g * e[1],
-                        raw[3 * i + 2] as f32 - g * e[2],
-                    ];
-                    let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
-                    // The floor's shadow stays floor (changed, explained, darker).
-                    let spared = scratch.spared[j] != 0
-                        && coarse[k] == super::WEAK
-                        && d[0] * e[0] + d[1] * e[1] + d[2] * e[2] < 0.0;
-                    if !spared && dd >= need * (m.tau2[k] as f32).max(1.0) {
-                        scratch.before[j] = coarse[k];
-                        scratch.fused[j] = MASK_ON;
-                        coarse[k] = FUSED;
+                if need.is_infinite() || coarse[k] == MASK_ON {
+                    continue;
+                }
+                let i = cy * c * w + cx * c;
+                let e = [m.er[k] as f32, m.eg[k] as f32, m.eb[k] as f32];
+                let d = [
+                    raw[3 * i] as f32 - g * e[0],
+                    raw[3 * i + 1] as f32 - g * e[1],
+                    raw[3 * i + 2] as f32 - g * e[2],
+                ];
+                let dd = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+                if dd < need * (m.tau2[k] as f32).max(1.0) {
+                    continue;
+                }
+                // The floor's shadow (changed, explained, darker): settled below.
+                if spare_shadows
+                    && in_zone
+                    && coarse[k] == super::WEAK
+                    && d[0] * e[0] + d[1] * e[1] + d[2] * e[2] < 0.0
+                {
+                    scratch.shadows.push((cx as u32, cy as u32));
+                    continue;
+                }
+                let j = (cy - y0) * bw + cx - x0;
+                scratch.before[j] = coarse[k];
+                scratch.fused[j] = MASK_ON;
+                coarse[k] = FUSED;
+            }
+        }
+        // The shadows, top-down per row: each column's last answer and where it was found
+        // (a walk stops there: no cell between changes the run).
+        scratch.spared.clear();
+        scratch.column_hangs.clear();
+        scratch.column_hangs.resize(bw, None);
+        for n in 0..scratch.shadows.len() {
+            let (cx, cy) = scratch.shadows[n];
+            let (cx, cy) = (cx as usize, cy as usize);
+            let mut hangs = false;
+            let mut y = cy;
+            while y > y0 {
+                y -= 1;
+                if let Some((at, known)) = scratch.column_hangs[cx - x0] {
+                    if at as usize == y {
+                        hangs = known;
+                        break;
                     }
                 }
-                // The column's run: broken by an unchanged cell the fusion left alone
-                // outside the network's core (clothing lost in the backdrop above the
-                // zone, deep inside the person, does not break it), anchored by a person
-                // cell outside the zone.
-                let a = &mut scratch.anchored[cx - x0];
-                match coarse[k] {
-                    0 if !prior.in_core(cx, cy) => *a = false,
-                    MASK_ON | FUSED if !in_zone => *a = true,
-                    _ => {}
+                let k = y * cw + cx;
+                let label = coarse[k];
+                let in_zone = m.zone[k] != 0;
+                if label == 0 && prior.core[(y - y0) * bw + cx - x0] == 0 {
+                    break; // the run is broken
                 }
+                if (label == MASK_ON || label == FUSED) && !in_zone {
+                    hangs = true;
+                    break;
+                }
+            }
+            scratch.column_hangs[cx - x0] = Some((cy as u32, hangs));
+            if hangs {
+                let j = (cy - y0) * bw + cx - x0;
+                let k = cy * cw + cx;
+                scratch.before[j] = coarse[k];
+                scratch.fused[j] = MASK_ON;
+                coarse[k] = FUSED;
+            } else {
+                scratch.spared.push((cx as u32, cy as u32));
             }
         }
     }
@@ -513,16 +548,12 @@ impl BackgroundModel {
         let Some(p) = &self.prior else {
             return (f32::INFINITY, false);
         };
-        let (x0, y0, x1, y1) = p.cell_box();
-        let spared = cx >= x0
-            && cx < x1
-            && cy >= y0
-            && cy < y1
+        let spared = !self.fuse_scratch.spared.is_empty()
             && self
                 .fuse_scratch
                 .spared
-                .get((cy - y0) * (x1 - x0) + cx - x0)
-                .is_some_and(|&v| v != 0);
+                .binary_search_by(|&(x, y)| (y as usize, x as usize).cmp(&(cy, cx)))
+                .is_ok();
         let cw = (self.width as usize).div_ceil(COARSE as usize);
         let in_zone = !self.zone_everywhere
             && self
