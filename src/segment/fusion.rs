@@ -232,6 +232,9 @@ fn restore_slivers(
     kept
 }
 
+/// The 8-bit probability level of p = 0.5: the network's own outline.
+const HALF_LEVEL: u8 = 128;
+
 /// The least 8-bit probability of the prior's core (p >= 0.99): the network's inside,
 /// away from the soft band (tens of cells wide on a person 600 cells tall) over which it
 /// falls to nothing at the outline.
@@ -443,10 +446,11 @@ impl BackgroundModel {
     /// marks the cells whose shadow stays floor (see [`FusionOptions::zone_shadow_stays`]).
     ///
     /// A shadow-explained cell of the zone is still the network's when its column hangs
-    /// from the person: its unbroken run of changed, fused or core cells above reaches a
-    /// person cell outside the zone (a leg in trousers of the floor's hue, as in
-    /// `classify::bridge_columns`). The floor between the two feet of a side view lies
-    /// under the far foot, which stands inside the zone with lit floor above it. Such
+    /// from the person: its unbroken run of cells above that are changed, fused, or that
+    /// the network calls person (p >= 0.5: clothing lost in the backdrop along a leg's
+    /// edge) reaches a person cell outside the zone (a leg in trousers of the floor's hue,
+    /// as in `classify::bridge_columns`). The floor between the two feet of a side view
+    /// lies under the far foot, which stands inside the zone with lit floor above it. Such
     /// cells are set aside in the pass over the box and settled after it, each by a walk up
     /// its column (they never change a run themselves: fused or not, they are changed).
     fn mark_fused(&self, raw: &[u8], coarse: &mut [u8], cw: usize, scratch: &mut FuseScratch) {
@@ -518,7 +522,7 @@ impl BackgroundModel {
                 let k = y * cw + cx;
                 let label = coarse[k];
                 let in_zone = m.zone[k] != 0;
-                if label == 0 && prior.core[(y - y0) * bw + cx - x0] == 0 {
+                if label == 0 && prior.prob[(y - y0) * bw + cx - x0] < HALF_LEVEL {
                     break; // the run is broken
                 }
                 if (label == MASK_ON || label == FUSED) && !in_zone {
