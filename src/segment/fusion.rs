@@ -192,6 +192,14 @@ fn min_ratio2_of(p: f32, o: &FusionOptions) -> f32 {
     }
 }
 
+/// Makes coarse cell `k` (box cell `j`) person by the fusion, keeping its former label.
+#[inline(always)]
+fn fuse_cell(coarse: &mut [u8], scratch: &mut FuseScratch, j: usize, k: usize) {
+    scratch.before[j] = coarse[k];
+    scratch.fused[j] = MASK_ON;
+    coarse[k] = FUSED;
+}
+
 /// Opens the fused cells of the prior's box (`bw x bh`): `scratch.a` holds the opened map.
 fn open_fused(scratch: &mut FuseScratch, bw: usize, bh: usize) {
     let FuseScratch {
@@ -495,10 +503,7 @@ impl BackgroundModel {
                     scratch.shadows.push((cx as u32, cy as u32));
                     continue;
                 }
-                let j = (cy - y0) * bw + cx - x0;
-                scratch.before[j] = coarse[k];
-                scratch.fused[j] = MASK_ON;
-                coarse[k] = FUSED;
+                fuse_cell(coarse, scratch, (cy - y0) * bw + cx - x0, k);
             }
         }
         // The shadows, top-down per row: each column's last answer and where it was found
@@ -532,11 +537,7 @@ impl BackgroundModel {
             }
             scratch.column_hangs[cx - x0] = Some((cy as u32, hangs));
             if hangs {
-                let j = (cy - y0) * bw + cx - x0;
-                let k = cy * cw + cx;
-                scratch.before[j] = coarse[k];
-                scratch.fused[j] = MASK_ON;
-                coarse[k] = FUSED;
+                fuse_cell(coarse, scratch, (cy - y0) * bw + cx - x0, cy * cw + cx);
             } else {
                 scratch.spared.push((cx as u32, cy as u32));
             }

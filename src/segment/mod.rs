@@ -722,26 +722,30 @@ impl BackgroundModel {
                 || de > (g * o.highlight_max_brightness - 1.0) * ee)
     }
 
+    /// Pixel `i` of colour `p` against the gain-scaled model: the difference `p - gE`,
+    /// the model's colour `E` and its squared noise radius.
+    #[inline(always)]
+    fn difference(&self, i: usize, p: [u8; 3]) -> ([f32; 3], [f32; 3], f32) {
+        let m = self.px[i];
+        let e = m.color();
+        let g = self.gain;
+        ([0, 1, 2].map(|c| p[c] as f32 - g * e[c]), e, m.radius2())
+    }
+
     /// True when pixel `i` differs from the gain-scaled model beyond its noise radius
     /// (foreground or a shadow / exposure change).
     #[inline(always)]
     fn is_changed(&self, i: usize, p: [u8; 3]) -> bool {
-        let m = self.px[i];
-        let e = m.color();
-        let g = self.gain;
-        let d = [0, 1, 2].map(|c| p[c] as f32 - g * e[c]);
-        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > m.radius2()
+        let (d, _, r2) = self.difference(i, p);
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > r2
     }
 
     /// True when pixel `i` of colour `p` is changed and darker than the model (a shadow,
     /// when the model does not call it foreground).
     #[inline(always)]
     fn is_darkened(&self, i: usize, p: [u8; 3]) -> bool {
-        let m = self.px[i];
-        let e = m.color();
-        let g = self.gain;
-        let d = [0, 1, 2].map(|c| p[c] as f32 - g * e[c]);
-        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > m.radius2()
+        let (d, e, r2) = self.difference(i, p);
+        d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > r2
             && d[0] * e[0] + d[1] * e[1] + d[2] * e[2] < 0.0
     }
 
