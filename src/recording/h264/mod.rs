@@ -173,8 +173,36 @@ pub fn decode_sample_bytes(
 
 #[cfg(test)]
 mod tests {
-    use super::reader::clean_restarts;
+    use super::reader::{clean_restarts, sample_sizes_fit};
     use super::*;
+
+    #[test]
+    fn an_index_the_mp4_crate_would_overflow_on_is_damage() {
+        // One size per sample: they must fit in the file, and a chunk's in 32 bits.
+        assert!(sample_sizes_fit(0, &[100, 200, 300], 2, 3, 1000).is_ok());
+        assert!(sample_sizes_fit(0, &[100, 200, 800], 2, 3, 1000).is_err());
+        let big = [u32::MAX / 2 + 1, u32::MAX / 2 + 1, 7];
+        assert!(sample_sizes_fit(0, &big, 1, 3, 1 << 40).is_ok());
+        assert!(sample_sizes_fit(0, &big, 2, 3, 1 << 40).is_err());
+        // One size for all of them.
+        assert!(sample_sizes_fit(10, &[], 4, 100, 1000).is_ok());
+        assert!(sample_sizes_fit(11, &[], 4, 100, 1000).is_err());
+        assert!(sample_sizes_fit(u32::MAX, &[], 2, 2, 1 << 40).is_err());
+        // The case the CI's fuzz run found: an `stsc` chunk numbered 0 (the crate
+        // subtracted 1 from it). The index is refused and the frames come from the
+        // media data.
+        let case = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fuzz_cases/mp4/ok-stsc-first-chunk-zero");
+        let reader = Mp4VideoReader::open(&case).unwrap();
+        assert!(
+            reader
+                .warnings()
+                .iter()
+                .any(|w| w.contains("chunk numbered 0")),
+            "{:?}",
+            reader.warnings()
+        );
+    }
 
     #[test]
     fn the_sps_tells_which_streams_openh264_decodes() {

@@ -200,7 +200,7 @@ impl Mp4VideoReader {
             ));
         }
         // The mp4 crate reads a sample's time from `stts` and panics on a sample the
-        // table does not cover (fuzz case `crash-read-sample-stts-short`):
+        // table does not cover (fuzz case `ok-read-sample-stts-short`):
         // such an index is damaged too.
         let timed: u64 = t
             .trak
@@ -212,17 +212,28 @@ impl Mp4VideoReader {
             .iter()
             .map(|e| u64::from(e.sample_count))
             .sum();
+        let stbl = &t.trak.mdia.minf.stbl;
         // ... and divides by an `stsc` entry's samples per chunk: zero is damage too.
-        if t.trak
-            .mdia
-            .minf
-            .stbl
-            .stsc
-            .entries
-            .iter()
-            .any(|e| e.samples_per_chunk == 0)
-        {
+        if stbl.stsc.entries.iter().any(|e| e.samples_per_chunk == 0) {
             return Err("the index has a chunk of zero samples".into());
+        }
+        // Chunks count from 1; the crate subtracts 1 from a chunk number of 0 (fuzz case
+        // `ok-stsc-first-chunk-zero`).
+        if stbl.stsc.entries.iter().any(|e| e.first_chunk == 0) {
+            return Err("the index has a chunk numbered 0".into());
+        }
+        let per_chunk = stbl.stsc.entries.iter().map(|e| e.samples_per_chunk).max();
+        sample_sizes_fit(
+            stbl.stsz.sample_size,
+            &stbl.stsz.sample_sizes,
+            per_chunk.unwrap_or(1),
+            t.sample_count(),
+            size,
+        )?;
+        // A fragmented file (`moof`) is not what a station records, and the crate's
+        // fragment arithmetic is unchecked: recovered from the media data instead.
+        if !t.trafs.is_empty() {
+            return Err("a fragmented MP4 (moof boxes)".into());
         }
         if timed < u64::from(t.sample_count()) {
             return Err(format!(
@@ -570,6 +581,11 @@ pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u
     let (_, t) = tracks
         .into_iter()
         .find(|(_, t)| matches!(t.track_type(), Ok(mp4::TrackType::Video)))?;
+    // An H.264 track whose index was refused is damaged, not another codec: its
+    // pictures are recovered from the media data.
+    if matches!(t.media_type(), Ok(mp4::MediaType::H264)) {
+        return None;
+    }
     let codec = match t.box_type() {
         Ok(b) => b.to_string(),
         Err(_) => "a codec the MP4 reader does not know (MPEG-4 Part 2?)".to_string(),
@@ -585,6 +601,51 @@ pub(super) fn to_rgb(yuv: &openh264::decoder::DecodedYUV<'_>) -> RgbImage {
     let mut img = RgbImage::new(w as u32, h as u32);
     yuv.write_rgb8(img.as_mut());
     img
+}
+
+/// The crate sums the sizes of the samples before a sample in its chunk in 32 bits: the
+/// index (`stsz`: one `fixed` size, or else one size per sample; the most samples an
+/// `stsc` chunk holds) is damage when its samples add up to more than the file, or when
+/// a chunk's can sum past 32 bits.
+pub(super) fn sample_sizes_fit(
+    fixed: u32,
+    sizes: &[u32],
+    per_chunk: u32,
+    count: u32,
+    file_size: u64,
+) -> Result<(), String> {
+    let per_chunk = u64::from(per_chunk);
+    if fixed > 0 {
+        let total = u64::from(fixed) * u64::from(count);
+        let chunk = u64::from(fixed) * per_chunk.min(u64::from(count));
+        if total > file_size || chunk > u64::from(u32::MAX) {
+            return Err(format!(
+                "the index gives {count} samples of {fixed} bytes in a file of {file_size} bytes"
+            ));
+        }
+        return Ok(());
+    }
+    let total: u64 = sizes.iter().map(|&n| u64::from(n)).sum();
+    if total > file_size {
+        return Err(format!(
+            "the index's samples add up to {total} bytes in a file of {file_size} bytes"
+        ));
+    }
+    if total > u64::from(u32::MAX) {
+        // Any run of `per_chunk` consecutive samples: a chunk's are among them.
+        let w = usize::try_from(per_chunk).unwrap_or(usize::MAX).max(1);
+        let mut run: u64 = 0;
+        for (i, &n) in sizes.iter().enumerate() {
+            run += u64::from(n);
+            if i >= w {
+                run -= u64::from(sizes[i - w]);
+            }
+            if run > u64::from(u32::MAX) {
+                return Err("the index has a chunk larger than 4 GiB".into());
+            }
+        }
+    }
+    Ok(())
 }
 
 /// Composition times of a track's samples in decoding order: decoding times (`stts`)
