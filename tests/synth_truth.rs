@@ -300,3 +300,67 @@ fn a_warped_subject_changes_about_its_height_only() {
     };
     assert!((arm_tip(&a) - arm_tip(&b)).length() < 1e-9);
 }
+
+/// `synth --turn-deg T`: the same subject turned on the mark, front towards the side
+/// camera for T > 0 (the turn study of issue 19, item 4, in docs/evaluation.md).
+#[test]
+fn synth_turns_the_subject_on_the_mark() {
+    if !body_available() {
+        return;
+    }
+    let render = |turn: &str| {
+        let out = tmp(&format!("turn{turn}"));
+        let status = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
+            .args([
+                "synth",
+                "--seed",
+                "5",
+                "--format",
+                "png",
+                "--empty-frames",
+                "10",
+            ])
+            .args(["--subject-frames", "1", "--turn-deg", turn, "--out"])
+            .arg(&out)
+            .status()
+            .expect("fitstation runs");
+        assert!(status.success(), "synth --turn-deg {turn}");
+        let truth = load_truth(&truth_dir(&out)).expect("truth");
+        let mesh = read_obj(&truth_dir(&out).join("mesh.obj"), None).expect("true mesh");
+        let _ = std::fs::remove_dir_all(&out);
+        let _ = std::fs::remove_dir_all(truth_dir(&out));
+        (truth, mesh)
+    };
+    let ((plus, plus_mesh), (minus, minus_mesh)) = (render("3"), render("-3"));
+    assert_eq!(plus.stance.as_ref().map(|s| s.yaw_deg), Some(3.0));
+    assert_eq!(minus.stance.as_ref().map(|s| s.yaw_deg), Some(-3.0));
+    // The same body, turned: the rotation about +Y taking the -3 degree body's
+    // vertices (about their centroid) onto the +3 degree body's is 6 degrees, the front
+    // (+Z) going towards +X.
+    assert_eq!(plus_mesh.positions.len(), minus_mesh.positions.len());
+    let centroid = |m: &fitstation::mesh::TriMesh| {
+        m.positions.iter().fold(glam::DVec3::ZERO, |a, &p| a + p) / m.positions.len() as f64
+    };
+    let (cp, cm) = (centroid(&plus_mesh), centroid(&minus_mesh));
+    let (mut sin, mut cos) = (0.0, 0.0);
+    for (&p, &m) in plus_mesh.positions.iter().zip(&minus_mesh.positions) {
+        let (p, m) = (p - cp, m - cm);
+        // R_y(t) (m.x, m.z) = (m.x cos t + m.z sin t, -m.x sin t + m.z cos t)
+        sin += m.z * p.x - m.x * p.z;
+        cos += m.x * p.x + m.z * p.z;
+    }
+    let turned = sin.atan2(cos).to_degrees();
+    assert!(
+        (turned - 6.0).abs() < 0.3,
+        "turned by {turned:.2} degrees, not 6"
+    );
+    // A turn beyond the station's is refused with a message.
+    let out = tmp("turn-bad");
+    let refused = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
+        .args(["synth", "--turn-deg", "90", "--out"])
+        .arg(&out)
+        .output()
+        .expect("fitstation runs");
+    assert!(!refused.status.success());
+    assert!(String::from_utf8_lossy(&refused.stderr).contains("--turn-deg 90"));
+}

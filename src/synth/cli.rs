@@ -111,7 +111,15 @@ pub struct SynthArgs {
     /// Do not write the truth folder.
     #[arg(long)]
     pub no_truth: bool,
+    /// Turn the subject on the mark by this many degrees beyond its drawn placement
+    /// (positive: its front toward the side camera), in the rest stance otherwise: the
+    /// same body and scene at several turns (issue 19, item 4).
+    #[arg(long, allow_hyphen_values = true)]
+    pub turn_deg: Option<f64>,
 }
+
+/// Largest `--turn-deg`: a shopper on the mark faces the front camera.
+const MAX_TURN_DEG: f64 = 30.0;
 
 /// Runs `fitstation synth`.
 pub fn run(args: SynthArgs) -> anyhow::Result<()> {
@@ -136,7 +144,19 @@ pub fn run(args: SynthArgs) -> anyhow::Result<()> {
         args.subject_frames > 0,
         "--subject-frames must be at least 1"
     );
-    let subject = args.subject.apply(SubjectParams::sample(args.seed))?;
+    let mut subject = args.subject.apply(SubjectParams::sample(args.seed))?;
+    if let Some(turn) = args.turn_deg {
+        anyhow::ensure!(
+            turn.is_finite() && turn.abs() <= MAX_TURN_DEG,
+            "--turn-deg {turn} is not a turn on the mark (at most {MAX_TURN_DEG} degrees either way)"
+        );
+        subject.stance = Some(stance::Stance {
+            arm_abduction_deg: [0.0, 0.0],
+            elbow_flexion_deg: [0.0, 0.0],
+            leg_abduction_deg: 0.0,
+            yaw_deg: turn,
+        });
+    }
     let cfg = SynthConfig {
         seed: args.seed,
         subject,
