@@ -111,7 +111,7 @@ pub struct ReplayArgs {
     #[arg(long, value_name = "SPEC", long_help = crate::capture::inject::SPEC_HELP)]
     pub inject: Option<String>,
     /// Also record the frame pairs the station is given into this new recording folder
-    /// (station.yaml and recording.yaml first, then each frame written whole, so a cut
+    /// (recording.yaml and station.yaml first, then each frame written whole, so a cut
     /// recording replays up to the cut).
     #[arg(long, conflicts_with = "ui")]
     pub record: Option<PathBuf>,

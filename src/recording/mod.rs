@@ -445,8 +445,11 @@ impl RecordingWriter {
         meta: RecordingMeta,
     ) -> Result<Self, RecordingError> {
         crate::io::atomic::create_dir(dir)?;
-        calibration.save(&dir.join(STATION_FILE))?;
+        // `recording.yaml` before `station.yaml`: a folder holding `station.yaml` is a
+        // recording, so a writer stopped between the two leaves no recording without its
+        // metadata (each file itself is written whole, `io::atomic`).
         crate::io::atomic::write(&dir.join(META_FILE), meta.to_yaml())?;
+        calibration.save(&dir.join(STATION_FILE))?;
         let videos = match format {
             FrameFormat::Png | FrameFormat::Jpeg => {
                 for v in View::BOTH {
@@ -554,6 +557,26 @@ mod tests {
         let text = m.to_yaml() + "operator_only_key: 3\n";
         let back = RecordingMeta::parse(&text, Path::new("r.yaml")).unwrap();
         assert_eq!(back, m);
+    }
+
+    #[test]
+    fn a_recording_folder_never_holds_station_yaml_without_its_metadata() {
+        // The metadata cannot be written (a folder stands where recording.yaml goes):
+        // the writer fails before station.yaml, which marks a folder as a recording.
+        let dir = std::env::temp_dir().join(format!("fitstation-rec-order-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join(META_FILE)).unwrap();
+        let calib = StationCalibration::nominal(720, 1280, 1100.0, 3.0, 1.1, 1.0);
+        assert!(RecordingWriter::new(&dir, &calib, FrameFormat::Png).is_err());
+        assert!(
+            !dir.join(STATION_FILE).exists(),
+            "station.yaml written without recording.yaml"
+        );
+        // Otherwise both are there.
+        std::fs::remove_dir_all(dir.join(META_FILE)).unwrap();
+        RecordingWriter::new(&dir, &calib, FrameFormat::Png).unwrap();
+        assert!(dir.join(STATION_FILE).is_file() && dir.join(META_FILE).is_file());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     #[test]
