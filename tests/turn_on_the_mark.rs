@@ -34,12 +34,7 @@ fn tmp(name: &str) -> PathBuf {
 fn render(dir: &Path, yaw_deg: f64) -> PathBuf {
     let rec = dir.join(format!("yaw{yaw_deg}"));
     let mut cfg = set_member(FIRST_SEED, MEMBER, SET_COUNT);
-    cfg.subject.stance = Some(Stance {
-        arm_abduction_deg: [0.0, 0.0],
-        elbow_flexion_deg: [0.0, 0.0],
-        leg_abduction_deg: 0.0,
-        yaw_deg,
-    });
+    cfg.subject.stance = Some(Stance::turned(yaw_deg));
     cfg.empty_frames = 10;
     cfg.subject_frames = SUBJECT_FRAMES;
     cfg.format = FrameFormat::Png;

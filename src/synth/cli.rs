@@ -150,12 +150,7 @@ pub fn run(args: SynthArgs) -> anyhow::Result<()> {
             turn.is_finite() && turn.abs() <= MAX_TURN_DEG,
             "--turn-deg {turn} is not a turn on the mark (at most {MAX_TURN_DEG} degrees either way)"
         );
-        subject.stance = Some(stance::Stance {
-            arm_abduction_deg: [0.0, 0.0],
-            elbow_flexion_deg: [0.0, 0.0],
-            leg_abduction_deg: 0.0,
-            yaw_deg: turn,
-        });
+        subject.stance = Some(stance::Stance::turned(turn));
     }
     let cfg = SynthConfig {
         seed: args.seed,

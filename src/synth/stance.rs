@@ -62,6 +62,16 @@ pub struct Stance {
 }
 
 impl Stance {
+    /// The rest stance turned on the mark by `yaw_deg` (`synth --turn-deg`).
+    pub fn turned(yaw_deg: f64) -> Stance {
+        Stance {
+            arm_abduction_deg: [0.0, 0.0],
+            elbow_flexion_deg: [0.0, 0.0],
+            leg_abduction_deg: 0.0,
+            yaw_deg,
+        }
+    }
+
     /// The stance of `seed` (deterministic).
     pub fn sample(seed: u64) -> Stance {
         let mut rng = SplitMix64::stream(seed, STANCE_STREAM);

@@ -199,20 +199,16 @@ impl Mp4VideoReader {
                 t.sample_count()
             ));
         }
+        let stbl = &t.trak.mdia.minf.stbl;
         // The mp4 crate reads a sample's time from `stts` and panics on a sample the
         // table does not cover (fuzz case `ok-read-sample-stts-short`):
-        // such an index is damaged too.
-        let timed: u64 = t
-            .trak
-            .mdia
-            .minf
-            .stbl
+        // such an index is damaged too (checked below).
+        let timed: u64 = stbl
             .stts
             .entries
             .iter()
             .map(|e| u64::from(e.sample_count))
             .sum();
-        let stbl = &t.trak.mdia.minf.stbl;
         // ... and divides by an `stsc` entry's samples per chunk: zero is damage too.
         if stbl.stsc.entries.iter().any(|e| e.samples_per_chunk == 0) {
             return Err("the index has a chunk of zero samples".into());
