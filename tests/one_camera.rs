@@ -24,11 +24,10 @@ fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("recordings/demo")
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fitstation-onecam-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+mod common;
+
+fn tmp(name: &str) -> common::TempDir {
+    common::tmp_dir("onecam", name)
 }
 
 fn fitstation(args: &[&str]) -> Value {

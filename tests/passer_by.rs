@@ -4,7 +4,7 @@
 use fitstation::camera::View;
 use fitstation::recording::{FrameFormat, Recording};
 use fitstation::synth::{load_truth, render_recording, set_member, truth_dir, SynthConfig};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// A development-range subject (seeds 20500+; never a judgement seed).
 const FIRST_SEED: u64 = 20500;
@@ -12,7 +12,7 @@ const SET_COUNT: usize = 4;
 
 mod common;
 
-fn tmp(name: &str) -> PathBuf {
+fn tmp(name: &str) -> common::TempDir {
     common::tmp_dir("passer", name)
 }
 

@@ -7,11 +7,10 @@ use fitstation::synth::{load_truth, render_recording, truth_dir, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fitstation-station-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+mod common;
+
+fn tmp(name: &str) -> common::TempDir {
+    common::tmp_dir("station", name)
 }
 
 fn synth(dir: &Path, seed: u64, subject_frames: usize) -> PathBuf {

@@ -26,7 +26,7 @@ const MAX_CHANGE_MM: f64 = 6.0;
 
 mod common;
 
-fn tmp(name: &str) -> PathBuf {
+fn tmp(name: &str) -> common::TempDir {
     common::tmp_dir("turn", name)
 }
 
@@ -73,7 +73,6 @@ fn a_small_turn_on_the_mark_moves_no_girth_more_than_a_few_millimetres() {
             worst = (key.to_string(), b - a);
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
     assert!(
         worst.1.abs() <= MAX_CHANGE_MM,
         "a {TURN_DEG} degree turn moved {} by {:+.1} mm",

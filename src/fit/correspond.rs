@@ -601,7 +601,7 @@ fn first_exit(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::camera::StationCalibration;
     use crate::mesh::shapes;

@@ -32,8 +32,17 @@ impl Fitter {
         self.align_crotch(&mut body, calib, front, seen, obs.stature_m);
         // 4. Pose synchronisation.
         pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
+        // The turn on the mark the side view's toes show.
+        let turned = match sd {
+            Some((cam, mask)) if self.opts.turn_from_toes => {
+                self.turn_to_toes(&mut body, cam, mask, seen)
+            }
+            _ => None,
+        };
         // 5. Controls and deformer on the posed candidate.
-        self.subject = Some(self.prepare_subject(body, params, calib)?);
+        let mut subject = self.prepare_subject(body, params, calib)?;
+        subject.turn = turned;
+        self.subject = Some(subject);
         Ok(())
     }
 
@@ -126,6 +135,30 @@ impl Fitter {
         (k, seen)
     }
 
+    /// Turns the posed candidate `body` about the vertical through `about` by the turn the
+    /// side view's toes show ([`turn`]); the estimate, or None (left unturned).
+    fn turn_to_toes(
+        &self,
+        body: &mut TriMesh,
+        cam: &Camera,
+        mask: MaskRef<'_>,
+        about: DVec3,
+    ) -> Option<turn::TurnEstimate> {
+        let foot = |g: &[u32]| -> Vec<DVec3> {
+            g.iter()
+                .filter_map(|&i| body.positions.get(i as usize).copied())
+                .collect()
+        };
+        let [l, r] = [foot(&self.feet[0]), foot(&self.feet[1])];
+        let t = turn::turn_from_toes(cam, mask, [&l, &r], about);
+        if debug_enabled() {
+            eprintln!("turn from the toes: {t:?}");
+        }
+        let t = t?;
+        turn::turn(&mut body.positions, about, t.yaw);
+        Some(t)
+    }
+
     /// Step 5: the posed candidate's controls (slice extremes or rims, the rigid parts
     /// pinned, the sections' dense vertices) and its deformer, as the subject's state.
     fn prepare_subject(
@@ -206,6 +239,7 @@ impl Fitter {
             deformer,
             positions: body.positions.clone(),
             rest: body,
+            turn: None,
         })
     }
 }

@@ -26,6 +26,7 @@ pub mod pose;
 pub mod section_prior;
 pub mod sections;
 pub mod shape;
+pub mod turn;
 
 use crate::body::{ShapeLibrary, ShapeParams, AGE_MAX_YEARS, AGE_MIN_YEARS};
 use crate::camera::StationCalibration;
@@ -60,6 +61,8 @@ const PLACEMENT_MAX_LEAN: f64 = 0.02;
 
 /// Environment variable that turns [`FitOptions::waist_prior`] off (value `off`).
 pub const WAIST_PRIOR_ENV: &str = "FITSTATION_WAIST_PRIOR";
+/// Environment variable that turns [`FitOptions::turn_from_toes`] off (value `off`).
+pub const TURN_ENV: &str = "FITSTATION_TURN";
 
 /// Options of the fit.
 #[derive(Debug, Clone)]
@@ -91,6 +94,10 @@ pub struct FitOptions {
     /// Passes of the first fit: after the first, the candidate is chosen again against
     /// the previous pass's fitted avatar and fitted from scratch.
     pub candidate_passes: usize,
+    /// Turn the candidate by the turn on the mark the side view's toes show
+    /// ([`turn`]) before its controls are chosen. On unless the environment sets
+    /// [`TURN_ENV`] to `off` (to compare: `FITSTATION_TURN=off fitstation eval ...`).
+    pub turn_from_toes: bool,
 }
 
 impl Default for FitOptions {
@@ -107,6 +114,7 @@ impl Default for FitOptions {
             dense_sections: true,
             waist_prior: std::env::var(WAIST_PRIOR_ENV).as_deref() != Ok("off"),
             candidate_passes: 3,
+            turn_from_toes: std::env::var(TURN_ENV).as_deref() != Ok("off"),
         }
     }
 }
@@ -177,6 +185,9 @@ pub struct FitStats {
     /// moved to the head's depth, [`one_view::stature_sd_mm`]); None when the side view
     /// or the operator gave it.
     pub stature_sd_mm: Option<f64>,
+    /// The turn on the mark the candidate was given at the subject's first fit
+    /// ([`turn`]), degrees; None when the toes showed none.
+    pub turn_deg: Option<f64>,
 }
 
 /// Per-subject state kept between frames.
@@ -191,6 +202,8 @@ struct SubjectState {
     /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
     pinned: Vec<u32>,
     positions: Vec<DVec3>,
+    /// The turn the candidate was given ([`turn`]).
+    turn: Option<turn::TurnEstimate>,
 }
 
 /// How far beyond the candidate's bounding box (each side, metres) a fitted avatar may
@@ -240,6 +253,8 @@ pub struct Fitter {
     edges: Vec<[u32; 2]>,
     pose_joints: pose::PoseJoints,
     rigid: Vec<Vec<u32>>,
+    /// The template's left and right foot vertices (the turn on the mark, [`turn`]).
+    feet: [Vec<u32>; 2],
     library_params: Vec<ShapeParams>,
     library_descriptors: Vec<shape::ShapeDescriptor>,
     subject: Option<SubjectState>,
@@ -288,7 +303,14 @@ impl Fitter {
         let depth_offsets = one_view::DepthOffsets::mean(&offsets);
         let pose_joints = pose::PoseJoints::new(template);
         let rigid = pose::rigid_groups(template);
+        let n = template.mesh.vertex_count() as u32;
+        let feet = [
+            &template.info.rigid.foot_left,
+            &template.info.rigid.foot_right,
+        ]
+        .map(|g| g.iter().copied().filter(|&i| i < n).collect());
         Ok(Fitter {
+            feet,
             edges,
             pose_joints,
             rigid,
@@ -479,6 +501,7 @@ impl Fitter {
         stats.residual_mm = if n > 0 { 1e3 * sum / n as f64 } else { 0.0 };
         stats.controls = s.controls.controls.len();
         stats.params = Some(s.params.clone());
+        stats.turn_deg = s.turn.map(|t| t.yaw.to_degrees());
         Ok((&s.positions, stats))
     }
 

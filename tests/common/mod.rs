@@ -15,12 +15,47 @@ pub const GIRTHS: [&str; 5] = [
     "thigh_girth_right",
 ];
 
-/// A fresh, empty temporary folder `fitstation-PREFIX-PID-NAME`.
-pub fn tmp_dir(prefix: &str, name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fitstation-{prefix}-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
+/// A fresh, empty temporary folder `fitstation-PREFIX-PID-NAME`, removed when dropped
+/// (the renders and fits in it are tens of megabytes a test, and CI's disk is shared by
+/// every run); kept, and named on stderr, when the test fails, to look at.
+pub struct TempDir(PathBuf);
+
+impl TempDir {
+    pub fn new(prefix: &str, name: &str) -> TempDir {
+        let d =
+            std::env::temp_dir().join(format!("fitstation-{prefix}-{}-{name}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).expect("temp dir");
+        TempDir(d)
+    }
+}
+
+impl std::ops::Deref for TempDir {
+    type Target = Path;
+    fn deref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl AsRef<Path> for TempDir {
+    fn as_ref(&self) -> &Path {
+        &self.0
+    }
+}
+
+impl Drop for TempDir {
+    fn drop(&mut self) {
+        if std::thread::panicking() {
+            eprintln!("kept for a look: {}", self.0.display());
+        } else {
+            let _ = std::fs::remove_dir_all(&self.0);
+        }
+    }
+}
+
+/// A fresh, empty temporary folder `fitstation-PREFIX-PID-NAME` (see [`TempDir`]).
+pub fn tmp_dir(prefix: &str, name: &str) -> TempDir {
+    TempDir::new(prefix, name)
 }
 
 /// The station's report.json for a recording replayed with the default options.
