@@ -154,7 +154,7 @@ impl Fitter {
         if debug_enabled() {
             eprintln!("turn from the toes: {t:?}");
         }
-        let t = t?;
+        let t = t.ok()?;
         turn::turn(&mut body.positions, about, t.yaw);
         Some(t)
     }
