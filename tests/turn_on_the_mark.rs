@@ -19,8 +19,8 @@ const FIRST_SEED: u64 = 20400;
 const MEMBER: usize = 3;
 const SET_COUNT: usize = 12;
 const SUBJECT_FRAMES: usize = 6;
-/// The turn, degrees: issue 19's varied stances turn by up to 4.
-const TURN_DEG: f64 = 4.0;
+/// The turns, degrees, either way: issue 19's varied stances turn by up to 4.
+const TURNS_DEG: [f64; 2] = [4.0, -4.0];
 /// "A few millimetres" (issue 19, item 4), per girth.
 const MAX_CHANGE_MM: f64 = 6.0;
 
@@ -50,37 +50,39 @@ fn girths(rec: &Path) -> serde_json::Map<String, serde_json::Value> {
         .expect("the subject is fitted and measured")
 }
 
-/// Fails today. Measured 2026-11-26, before the fit had a turn: chest +23.7, waist +8.9,
-/// hip +1.4, thighs +14.4 / +13.1 mm for a 4 degree turn. Measured 2026-11-28 with the
-/// candidate turned by what the side view's toes show (`fit::turn`; read as 0.2 and 3.9
-/// degrees, the truth 0.3 and 4.3): chest +1.2, waist +13.8, hip -6.5, thighs +7.0 /
-/// +9.0. What is left: the turned avatar's thighs are 3-4 mm deeper than the truth's,
-/// and its trunk 28-34 cm over the crotch, whose breadth and front and back match the
-/// truth's within 2 mm, has a fuller section turned (hull +11 to +13 mm) than square (-6
-/// to -14); why is not known yet. Run with `cargo test --release --test turn_on_the_mark
-/// -- --ignored`.
+/// Fails today, by a little. Measured 2026-11-26, before the fit had a turn: chest +23.7,
+/// waist +8.9, hip +1.4, thighs +14.4 / +13.1 mm for a turn of +4 degrees. Measured
+/// 2026-11-28 with the candidate turned by what the side view's toes show (`fit::turn`;
+/// read as 0.15 and 3.87 degrees, the truth 0.3 and 4.3), the avatar turned back before
+/// the candidate is chosen again on it and the waist's section prior given in the body's
+/// axes: +4 degrees chest +5.6, waist +4.7, hip -4.7, thighs -3.1 / -1.4 (within); -4
+/// degrees chest +2.1, waist +0.2, hip -6.4, thighs +5.0 / +3.4 (the hip 0.4 mm over).
+/// Run with `cargo test --release --test turn_on_the_mark -- --ignored`.
 #[test]
-#[ignore = "issue 19 item 4 not met yet: a 4 degree turn still moves the waist by +14 mm and the thighs by +7 / +9 (the chest by +1)"]
+#[ignore = "issue 19 item 4 not met yet: a -4 degree turn moves the hip by -6.4 mm (+4 degrees: within 5.6 mm on every girth)"]
 fn a_small_turn_on_the_mark_moves_no_girth_more_than_a_few_millimetres() {
     let dir = tmp("girths");
     let square = girths(&render(&dir, 0.0));
-    let turned = girths(&render(&dir, TURN_DEG));
-    let mut worst = (String::new(), 0.0f64);
-    for key in common::GIRTHS {
-        let a = square[key].as_f64().expect("girth");
-        let b = turned[key].as_f64().expect("girth");
-        eprintln!(
-            "{key}: square {a:.1} mm, turned {TURN_DEG} deg {b:.1} mm, change {:+.1}",
-            b - a
-        );
-        if (b - a).abs() > worst.1.abs() {
-            worst = (key.to_string(), b - a);
+    let mut worst = (0.0f64, String::new(), 0.0f64);
+    for turn in TURNS_DEG {
+        let turned = girths(&render(&dir, turn));
+        for key in common::GIRTHS {
+            let a = square[key].as_f64().expect("girth");
+            let b = turned[key].as_f64().expect("girth");
+            eprintln!(
+                "{key}: square {a:.1} mm, turned {turn} deg {b:.1} mm, change {:+.1}",
+                b - a
+            );
+            if (b - a).abs() > worst.2.abs() {
+                worst = (turn, key.to_string(), b - a);
+            }
         }
     }
     assert!(
-        worst.1.abs() <= MAX_CHANGE_MM,
-        "a {TURN_DEG} degree turn moved {} by {:+.1} mm",
+        worst.2.abs() <= MAX_CHANGE_MM,
+        "a {} degree turn moved {} by {:+.1} mm",
         worst.0,
-        worst.1
+        worst.1,
+        worst.2
     );
 }

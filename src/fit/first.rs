@@ -32,6 +32,16 @@ impl Fitter {
         self.align_crotch(&mut body, calib, front, seen, obs.stature_m);
         // 4. Pose synchronisation.
         pose::synchronise(&mut body, &self.template_labels, &self.pose_joints, k, obs);
+        // The candidate's own levels for the waist's section prior, taken facing the
+        // front camera (the hip's furthest-back point moves on a turned body).
+        let waist_band = if self.opts.waist_prior && self.opts.dense_sections {
+            crate::measure::measure(&body).ok().and_then(|m| {
+                let l = &m.levels;
+                section_prior::WaistBand::new(l.hip_m, l.waist_m, l.chest_m)
+            })
+        } else {
+            None
+        };
         // The turn on the mark the side view's toes show.
         let turned = match sd {
             Some((cam, mask)) if self.opts.turn_from_toes => {
@@ -40,8 +50,11 @@ impl Fitter {
             _ => None,
         };
         // 5. Controls and deformer on the posed candidate.
-        let mut subject = self.prepare_subject(body, params, calib)?;
-        subject.turn = turned;
+        let mut subject = self.prepare_subject(body, params, calib, waist_band)?;
+        if let (Some(plan), Some(t)) = (subject.plan.as_mut(), turned) {
+            plan.set_yaw(t.yaw);
+        }
+        subject.turn = turned.map(|t| (t, seen));
         self.subject = Some(subject);
         Ok(())
     }
@@ -160,12 +173,15 @@ impl Fitter {
     }
 
     /// Step 5: the posed candidate's controls (slice extremes or rims, the rigid parts
-    /// pinned, the sections' dense vertices) and its deformer, as the subject's state.
+    /// pinned, the sections' dense vertices) and its deformer, as the subject's state
+    /// (`waist_band`: the levels of the waist's section prior, None: the candidate's
+    /// own shape there).
     fn prepare_subject(
         &self,
         body: TriMesh,
         params: ShapeParams,
         calib: &StationCalibration,
+        waist_band: Option<section_prior::WaistBand>,
     ) -> Result<SubjectState, FitError> {
         let step = body.mean_edge_length();
         let mut excluded = vec![false; body.vertex_count()];
@@ -196,15 +212,8 @@ impl Fitter {
                 &controls,
                 [&calib.front, &calib.side],
             );
-            if self.opts.waist_prior {
-                // The candidate's own levels: the mapped targets keep its heights.
-                if let Ok(m) = crate::measure::measure(&body) {
-                    let l = &m.levels;
-                    plan.set_waist_band(section_prior::WaistBand::new(
-                        l.hip_m, l.waist_m, l.chest_m,
-                    ));
-                }
-            }
+            // The candidate's own levels: the mapped targets keep its heights.
+            plan.set_waist_band(waist_band);
             let mut taken = vec![false; body.vertex_count()];
             for &v in indices.iter().chain(&pinned) {
                 taken[v as usize] = true;

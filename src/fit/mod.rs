@@ -202,8 +202,9 @@ struct SubjectState {
     /// Vertices of the rigid parts (head, hands, feet), held at the candidate's positions.
     pinned: Vec<u32>,
     positions: Vec<DVec3>,
-    /// The turn the candidate was given ([`turn`]).
-    turn: Option<turn::TurnEstimate>,
+    /// The turn the candidate was given ([`turn`]) and a point of the vertical it was
+    /// turned about.
+    turn: Option<(turn::TurnEstimate, DVec3)>,
 }
 
 /// How far beyond the candidate's bounding box (each side, metres) a fitted avatar may
@@ -501,7 +502,7 @@ impl Fitter {
         stats.residual_mm = if n > 0 { 1e3 * sum / n as f64 } else { 0.0 };
         stats.controls = s.controls.controls.len();
         stats.params = Some(s.params.clone());
-        stats.turn_deg = s.turn.map(|t| t.yaw.to_degrees());
+        stats.turn_deg = s.turn.map(|(t, _)| t.yaw.to_degrees());
         Ok((&s.positions, stats))
     }
 
@@ -650,7 +651,11 @@ impl Fitter {
     fn avatar_descriptor(&self) -> Option<shape::ShapeDescriptor> {
         let s = self.subject.as_ref()?;
         let floor = s.positions.iter().map(|p| p.y).fold(f64::MAX, f64::min);
-        let lifted: Vec<DVec3> = s.positions.iter().map(|p| *p - DVec3::Y * floor).collect();
+        let mut lifted: Vec<DVec3> = s.positions.iter().map(|p| *p - DVec3::Y * floor).collect();
+        // The library's bodies face the front camera: the avatar is compared turned back.
+        if let Some((t, about)) = s.turn {
+            turn::turn(&mut lifted, about, -t.yaw);
+        }
         Some(shape::mesh_descriptor(
             &lifted,
             &self.edges,
