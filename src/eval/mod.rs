@@ -150,6 +150,17 @@ pub struct EvalRow {
     /// The report's frame counts (`frames`), when present: frame pairs with a subject
     /// and those fitted; the others were refused (a verdict, no landmarks, a failed fit).
     pub frames: Option<FrameTally>,
+    /// The turn on the mark the fit read (report.json `fit.turn_deg`) against the truth's.
+    pub turn: TurnCompare,
+}
+
+/// The shopper's turn on the mark, degrees (positive: the front toward +X, the side
+/// camera): the truth's (its placement's and its stance's) and the fit's reading.
+#[derive(Debug, Clone, Copy, Serialize, PartialEq)]
+pub struct TurnCompare {
+    pub true_deg: f64,
+    /// None when the fit read no turn (or the report does not say).
+    pub read_deg: Option<f64>,
 }
 
 /// Frame pairs with a subject and fitted, from a report's `frames`.
@@ -230,7 +241,16 @@ pub fn evaluate(truth_dir: &Path, result: &FitResult) -> Result<EvalRow, EvalErr
                 .collect()
         })
         .unwrap_or_default();
+    let turn = TurnCompare {
+        true_deg: truth.placement.yaw_deg + truth.stance.as_ref().map_or(0.0, |s| s.yaw_deg),
+        read_deg: result
+            .report_json
+            .get("fit")
+            .and_then(|f| f.get("turn_deg"))
+            .and_then(|v| v.as_f64()),
+    };
     Ok(EvalRow {
+        turn,
         frames: FrameTally::from_report(&result.report_json),
         settled_step_mm,
         subject,

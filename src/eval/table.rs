@@ -46,6 +46,40 @@ impl WorstGirth {
     }
 }
 
+/// How well the fit read the shoppers' turns on the mark over a set.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TurnSummary {
+    pub subjects: usize,
+    /// Subjects whose turn was read.
+    pub read: usize,
+    /// Of the read: mean and mean absolute error (read - true), degrees.
+    pub mean_error_deg: f64,
+    pub mean_abs_error_deg: f64,
+    /// The largest error and whose.
+    pub worst_error_deg: f64,
+    pub worst_subject: String,
+    /// Of the read turned more than a degree: how many, and with the right sign.
+    pub turned: usize,
+    pub sign_right: usize,
+}
+
+impl TurnSummary {
+    /// One line for the text table.
+    pub fn describe(&self) -> String {
+        format!(
+            "turn on the mark read on {} of {} subjects: error mean {:+.2}, MAE {:.2}, worst {:+.2} deg (subject {}); sign right on {} of {} turned over a degree",
+            self.read,
+            self.subjects,
+            self.mean_error_deg,
+            self.mean_abs_error_deg,
+            self.worst_error_deg,
+            self.worst_subject,
+            self.sign_right,
+            self.turned
+        )
+    }
+}
+
 /// Rows and their summary.
 #[derive(Debug, Clone, Serialize, Default)]
 pub struct EvalTable {
@@ -93,6 +127,37 @@ impl EvalTable {
                 }
             })
             .collect()
+    }
+
+    /// The turns read against the truth's (None without rows).
+    pub fn turn_summary(&self) -> Option<TurnSummary> {
+        if self.rows.is_empty() {
+            return None;
+        }
+        let read: Vec<(f64, f64, &str)> = self
+            .rows
+            .iter()
+            .filter_map(|r| {
+                r.turn
+                    .read_deg
+                    .map(|d| (d, r.turn.true_deg, r.subject.as_str()))
+            })
+            .collect();
+        let n = read.len().max(1) as f64;
+        let worst = read
+            .iter()
+            .max_by(|a, b| (a.0 - a.1).abs().total_cmp(&(b.0 - b.1).abs()));
+        let turned: Vec<_> = read.iter().filter(|t| t.1.abs() > 1.0).collect();
+        Some(TurnSummary {
+            subjects: self.rows.len(),
+            read: read.len(),
+            mean_error_deg: read.iter().map(|t| t.0 - t.1).sum::<f64>() / n,
+            mean_abs_error_deg: read.iter().map(|t| (t.0 - t.1).abs()).sum::<f64>() / n,
+            worst_error_deg: worst.map_or(0.0, |t| t.0 - t.1),
+            worst_subject: worst.map_or(String::new(), |t| t.2.to_string()),
+            turned: turned.len(),
+            sign_right: turned.iter().filter(|t| t.0 * t.1 > 0.0).count(),
+        })
     }
 
     /// The worst single girth error over every subject and tape girth of the set
@@ -220,8 +285,8 @@ impl EvalTable {
             s.push_str(&format!(" {:>12}", short(n)));
         }
         s.push_str(&format!(
-            " {:>9} {:>9} {:>7} {:>7}\n",
-            "surf mean", "surf p95", "IoU f", "IoU s"
+            " {:>9} {:>9} {:>7} {:>7} {:>13}\n",
+            "surf mean", "surf p95", "IoU f", "IoU s", "turn read/true"
         ));
         for r in &self.rows {
             s.push_str(&format!("{:<16}", clip(&r.subject, 16)));
@@ -240,13 +305,21 @@ impl EvalTable {
                 (format!("{:.1}", d.mean_mm), format!("{:.1}", d.p95_mm))
             });
             let iou = |v: &str| r.mask_iou.get(v).map_or("-".into(), |x| format!("{x:.3}"));
+            let turn = format!(
+                "{}/{:+.1}",
+                r.turn.read_deg.map_or("-".into(), |d| format!("{d:+.1}")),
+                r.turn.true_deg
+            );
             s.push_str(&format!(
-                " {:>9} {:>9} {:>7} {:>7}\n",
+                " {:>9} {:>9} {:>7} {:>7} {turn:>14}\n",
                 sd.0,
                 sd.1,
                 iou("front"),
                 iou("side")
             ));
+        }
+        if let Some(t) = self.turn_summary() {
+            s.push_str(&format!("\n{}\n", t.describe()));
         }
         s.push_str("\nper measurement        subjects   MAE mm  bias mm  worst mm  median ± mm  within ±  (worst subject)\n");
         for m in self.summary() {

@@ -23,6 +23,10 @@ fn row(subject: &str, errors: &[(&str, Option<f64>)]) -> EvalRow {
         profile: Vec::new(),
         settled_step_mm: BTreeMap::new(),
         frames: None,
+        turn: TurnCompare {
+            true_deg: 0.0,
+            read_deg: None,
+        },
     }
 }
 
@@ -166,4 +170,43 @@ fn truth_landmark_names_map_to_the_stations() {
     ] {
         assert_eq!(station_landmark_name(n), l.as_str());
     }
+}
+
+/// The turn the fit read is scored against the truth's: read on how many, its error, the
+/// worst subject and the sign of the clear turns; the text table says so per subject.
+#[test]
+fn turns_read_are_scored_against_the_truths() {
+    let with = |name: &str, read: Option<f64>, truth: f64| {
+        let mut r = row(name, &[("chest_girth", Some(1.0))]);
+        r.turn = TurnCompare {
+            true_deg: truth,
+            read_deg: read,
+        };
+        r
+    };
+    let table = EvalTable {
+        rows: vec![
+            with("a", Some(2.5), 2.0),
+            with("b", Some(-3.5), -2.0),
+            with("c", None, 4.0),
+            with("d", Some(0.3), 0.5),
+        ],
+        failures: Vec::new(),
+    };
+    let t = table.turn_summary().expect("rows");
+    assert_eq!((t.subjects, t.read), (4, 3));
+    assert!((t.mean_error_deg - (0.5 - 1.5 - 0.2) / 3.0).abs() < 1e-12);
+    assert!((t.mean_abs_error_deg - (0.5 + 1.5 + 0.2) / 3.0).abs() < 1e-12);
+    assert_eq!((t.worst_error_deg, t.worst_subject.as_str()), (-1.5, "b"));
+    assert_eq!((t.turned, t.sign_right), (2, 2));
+    let text = table.to_text();
+    assert!(
+        text.contains("+2.5/+2.0") && text.contains("-/+4.0"),
+        "{text}"
+    );
+    assert!(
+        text.contains("turn on the mark read on 3 of 4 subjects"),
+        "{text}"
+    );
+    assert_eq!(EvalTable::default().turn_summary(), None);
 }

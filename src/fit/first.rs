@@ -51,8 +51,14 @@ impl Fitter {
         };
         // 5. Controls and deformer on the posed candidate.
         let mut subject = self.prepare_subject(body, params, calib, waist_band)?;
-        if let (Some(plan), Some(t)) = (subject.plan.as_mut(), turned) {
-            plan.set_yaw(t.yaw);
+        if let Some(t) = turned {
+            // The sections are mapped in the body's own axes: its rims and rest
+            // positions turned back (the waist's prior, the legs' shared depth map).
+            if let Some(plan) = subject.plan.as_mut() {
+                plan.turn_rims(seen, -t.yaw);
+            }
+            subject.rest_square = subject.rest.positions.clone();
+            turn::turn(&mut subject.rest_square, seen, -t.yaw);
         }
         subject.turn = turned.map(|t| (t, seen));
         self.subject = Some(subject);
@@ -248,6 +254,7 @@ impl Fitter {
             deformer,
             positions: body.positions.clone(),
             rest: body,
+            rest_square: Vec::new(),
             turn: None,
         })
     }

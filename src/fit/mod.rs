@@ -205,6 +205,9 @@ struct SubjectState {
     /// The turn the candidate was given ([`turn`]) and a point of the vertical it was
     /// turned about.
     turn: Option<(turn::TurnEstimate, DVec3)>,
+    /// With a turn: `rest` turned back to face the front camera (the sections are
+    /// mapped in the body's own axes); empty without.
+    rest_square: Vec<DVec3>,
 }
 
 /// How far beyond the candidate's bounding box (each side, metres) a fitted avatar may
@@ -261,6 +264,8 @@ pub struct Fitter {
     subject: Option<SubjectState>,
     centroids: Vec<DVec3>,
     targets: Vec<Option<DVec3>>,
+    /// `targets` turned back with a turned candidate (see [`SubjectState::rest_square`]).
+    targets_square: Vec<Option<DVec3>>,
     target_buf: Vec<DVec3>,
     section_scratch: sections::SectionScratch,
     /// The side view's limb capsules of the current call (see [`Observation`]).
@@ -323,6 +328,7 @@ impl Fitter {
             subject: None,
             centroids: Vec::new(),
             targets: Vec::new(),
+            targets_square: Vec::new(),
             target_buf: Vec::new(),
             section_scratch: Default::default(),
             side_occluders: [None; sections::MAX_SIDE_OCCLUDERS],
@@ -600,14 +606,38 @@ impl Fitter {
                 // Mapped from the candidate itself, not from the last frame's avatar: each
                 // frame's surface is a function of the candidate and this frame's targets
                 // (no drift through a run of bad masks).
-                plan.targets(
-                    &s.rest.positions,
-                    &s.controls,
-                    &self.targets,
-                    &self.side_occluders,
-                    &mut self.section_scratch,
-                    &mut self.vertex_targets,
-                );
+                match s.turn {
+                    // A turned candidate's sections are mapped in its own axes: its
+                    // targets turned back with it, the mapped targets turned forward.
+                    Some((t, about)) => {
+                        self.targets_square.clear();
+                        self.targets_square.extend(self.targets.iter().map(|p| {
+                            p.map(|mut p| {
+                                turn::turn(std::slice::from_mut(&mut p), about, -t.yaw);
+                                p
+                            })
+                        }));
+                        plan.targets(
+                            &s.rest_square,
+                            &s.controls,
+                            &self.targets_square,
+                            &self.side_occluders,
+                            &mut self.section_scratch,
+                            &mut self.vertex_targets,
+                        );
+                        for p in self.vertex_targets.iter_mut().flatten() {
+                            turn::turn(std::slice::from_mut(p), about, t.yaw);
+                        }
+                    }
+                    None => plan.targets(
+                        &s.rest.positions,
+                        &s.controls,
+                        &self.targets,
+                        &self.side_occluders,
+                        &mut self.section_scratch,
+                        &mut self.vertex_targets,
+                    ),
+                }
             }
             let dense_at = |v: u32| self.vertex_targets.get(v as usize).copied().flatten();
             self.target_buf.clear();

@@ -97,9 +97,6 @@ pub struct SectionPlan {
     /// shape ([`super::section_prior`]); no reshaping without a band.
     torso_vertices: Vec<u32>,
     waist_band: Option<WaistBand>,
-    /// The candidate's turn on the mark, radians ([`super::turn`]): the waist's section
-    /// shape is given in the body's own axes.
-    yaw: f64,
 }
 
 /// Per-entry delta map `d(x) = alpha + beta * x` and the entry's centre height.
@@ -350,9 +347,10 @@ impl SectionPlan {
         self.waist_band = band;
     }
 
-    /// The candidate's turn on the mark (radians, see [`super::turn`]).
-    pub fn set_yaw(&mut self, yaw: f64) {
-        self.yaw = yaw;
+    /// Turns the recorded rims by `yaw` about the vertical through `about` (see
+    /// [`super::turn`]): rims found on a turned candidate, for maps made in its own axes.
+    pub fn turn_rims(&mut self, about: DVec3, yaw: f64) {
+        super::turn::turn(&mut self.rims, about, yaw);
     }
 
     /// Records, per control, the candidate's rim point at the control's height: the point
@@ -482,19 +480,7 @@ impl SectionPlan {
             }
         }
         if let Some(band) = &self.waist_band {
-            // The prior's corners are the body's: a turned trunk is reshaped turned back.
-            let turn_trunk = |out: &mut [Option<DVec3>], yaw: f64| {
-                if yaw != 0.0 {
-                    for &v in &self.torso_vertices {
-                        if let Some(p) = out.get_mut(v as usize).and_then(|p| p.as_mut()) {
-                            super::turn::turn(std::slice::from_mut(p), DVec3::ZERO, yaw);
-                        }
-                    }
-                }
-            };
-            turn_trunk(out, -self.yaw);
             let push = reshape(band, &self.torso_vertices, out, &mut scratch.prior);
-            turn_trunk(out, self.yaw);
             if super::debug_enabled() {
                 eprintln!("waist prior: {band:?} push {push:?}");
             }
