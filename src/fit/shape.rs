@@ -330,23 +330,31 @@ pub fn gap_top_on_axis(
     y_from: f64,
     y_to: f64,
 ) -> Option<f64> {
-    let at = |y: f64| DVec3::new(x, y, z);
-    let occ = |y: f64| {
-        cam.project(at(y))
+    let t = first_inside(cam, mask, DVec3::new(x, y_from, z), DVec3::new(x, y_to, z))?;
+    Some(y_from + t * (y_to - y_from))
+}
+
+/// Where, walking the segment from `a` to `b` (station frame), its image in `cam` first
+/// enters the silhouette: the fraction of the way, refined by bisection to the
+/// occupancy's half crossing. Steps of half a pixel; a point the camera cannot see counts
+/// as outside. None when `a` is already inside or nothing is met before `b`.
+pub fn first_inside(cam: &Camera, mask: MaskRef<'_>, a: DVec3, b: DVec3) -> Option<f64> {
+    let occ = |t: f64| {
+        cam.project(a + t * (b - a))
             .map(|px| mask.occupancy(px))
             .unwrap_or(0.0)
     };
-    if occ(y_from) >= 0.5 {
+    if occ(0.0) >= 0.5 {
         return None;
     }
-    let a = cam.project(at(y_from))?;
-    let b = cam.project(at(y_to))?;
-    let n = (((b - a).length() / 0.5).ceil() as usize).clamp(2, 8000);
-    let mut prev = y_from;
+    let pa = cam.project(a)?;
+    let pb = cam.project(b)?;
+    let n = (((pb - pa).length() / 0.5).ceil() as usize).clamp(2, 8000);
+    let mut prev = 0.0;
     for i in 1..=n {
-        let y = y_from + (y_to - y_from) * i as f64 / n as f64;
-        if occ(y) >= 0.5 {
-            let (mut lo, mut hi) = (prev, y);
+        let t = i as f64 / n as f64;
+        if occ(t) >= 0.5 {
+            let (mut lo, mut hi) = (prev, t);
             for _ in 0..14 {
                 let mid = 0.5 * (lo + hi);
                 if occ(mid) >= 0.5 {
@@ -357,7 +365,7 @@ pub fn gap_top_on_axis(
             }
             return Some(0.5 * (lo + hi));
         }
-        prev = y;
+        prev = t;
     }
     None
 }

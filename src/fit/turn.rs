@@ -27,8 +27,9 @@
 //! left); angles in radians, positive turning the front (+Z) toward +X.
 
 use super::correspond::MaskRef;
+use super::shape::first_inside;
 use crate::camera::Camera;
-use glam::{DVec2, DVec3};
+use glam::DVec3;
 
 /// Scans per foot, evenly from its sole up to [`SCAN_TOP_M`] over it: the toe's tip lies
 /// in between, on a shoe or a bare foot.
@@ -38,8 +39,6 @@ const SCAN_TOP_M: f64 = 0.04;
 /// How far in front of and behind the candidate's toe the scan runs, metres: a foot placed
 /// within the mark's tolerance.
 const SCAN_REACH_M: f64 = 0.12;
-/// Scan step along z, metres (refined to the occupancy's half crossing in between).
-const SCAN_STEP_M: f64 = 0.002;
 /// The far foot's toe row must lie this many pixels clear of the near foot's toe cap.
 const CLEAR_PX: f64 = 3.0;
 /// Margin over the near foot's own toe-cap height when checking that clearance, metres
@@ -276,51 +275,20 @@ fn clear_of(cam: &Camera, foot: Foot, other: Foot, y: f64, z: f64, far: bool) ->
 }
 
 /// Frontmost z on the line (x, y, z), z within [`SCAN_REACH_M`] of `toe_z`, whose
-/// projection lies in the silhouette (see [`first_inside`]).
+/// projection lies in the silhouette; None when the line starts inside (something
+/// reaches further forward there) or never enters it.
 fn toe_front(cam: &Camera, mask: MaskRef<'_>, x: f64, y: f64, toe_z: f64) -> Option<f64> {
-    first_inside(cam, mask, x, y, toe_z + SCAN_REACH_M, -1.0)
+    let (a, b) = (toe_z + SCAN_REACH_M, toe_z - SCAN_REACH_M);
+    let t = first_inside(cam, mask, DVec3::new(x, y, a), DVec3::new(x, y, b))?;
+    Some(a + t * (b - a))
 }
 
 /// Backmost z on the line (x, y, z), z within [`SCAN_REACH_M`] of `heel_z`, whose
 /// projection lies in the silhouette.
 fn heel_back(cam: &Camera, mask: MaskRef<'_>, x: f64, y: f64, heel_z: f64) -> Option<f64> {
-    first_inside(cam, mask, x, y, heel_z - SCAN_REACH_M, 1.0)
-}
-
-/// The first z on the line (x, y, z) from `start` along `sign` (over twice
-/// [`SCAN_REACH_M`]) whose projection lies in the silhouette, refined to the occupancy's
-/// half crossing. None when the line starts inside the silhouette (something reaches
-/// further there) or never enters it.
-fn first_inside(
-    cam: &Camera,
-    mask: MaskRef<'_>,
-    x: f64,
-    y: f64,
-    start: f64,
-    sign: f64,
-) -> Option<f64> {
-    let occ = |z: f64| -> Option<f64> {
-        cam.project(DVec3::new(x, y, z))
-            .map(|p: DVec2| mask.occupancy(p))
-    };
-    let mut z = start;
-    let mut prev = occ(z)?;
-    if prev >= 0.5 {
-        return None;
-    }
-    let steps = (2.0 * SCAN_REACH_M / SCAN_STEP_M).ceil() as usize;
-    for _ in 0..steps {
-        let z1 = z + sign * SCAN_STEP_M;
-        let o = occ(z1)?;
-        if o >= 0.5 {
-            // Linear crossing of one half between z (prev) and z1 (o).
-            let t = (0.5 - prev) / (o - prev).max(1e-9);
-            return Some(z + sign * t * SCAN_STEP_M);
-        }
-        prev = o;
-        z = z1;
-    }
-    None
+    let (a, b) = (heel_z - SCAN_REACH_M, heel_z + SCAN_REACH_M);
+    let t = first_inside(cam, mask, DVec3::new(x, y, a), DVec3::new(x, y, b))?;
+    Some(a + t * (b - a))
 }
 
 /// Turns `positions` by `yaw` about the vertical line through `about` (its y ignored).
