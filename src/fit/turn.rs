@@ -14,9 +14,12 @@
 //! few heights over the floor on each foot's own vertical plane (`x` of that foot, from
 //! the candidate posed to the front view), the first silhouette pixel from the front is
 //! that foot's toe front, with the side camera's full projection (no perspective scale to
-//! undo). The toes' difference in depth over the feet's separation is the sine of the turn.
-//! The candidate is then turned by it before its controls are chosen, so the legs' union
-//! in the side view is the union of legs that stand like the shopper's.
+//! undo). The far toe's offset ahead of the near one is matched against the candidate's
+//! own feet turned (feet pointing outward change a turned pair's offset: not simply the
+//! feet's separation times the sine of the turn). The candidate is then turned by that
+//! before its controls are chosen, so the legs' union in the side view is the union of
+//! legs that stand like the shopper's, and its sections are mapped in its own axes
+//! ([`super::sections`], turned back and forward again).
 //!
 //! A foot plane whose toe row is not clear of the near foot's toe cap (a side camera
 //! mounted too low, feet too close together), toes the mask lost (shoes the colour of the
