@@ -50,15 +50,15 @@ const TOE_CAP_MARGIN_M: f64 = 0.02;
 /// Depth of a foot's toe tip, metres.
 const TIP_DEPTH_M: f64 = 0.01;
 /// Fewest feet' separation (metres, across the side camera's view) that defines a turn.
-const MIN_SEPARATION_M: f64 = 0.08;
+pub const MIN_SEPARATION_M: f64 = 0.08;
 /// Shortest near foot seen (toe front to heel back), a share of the candidate's foot. A
 /// pale shoe's heel lost against the floor leaves the toes where they are (seen on the
 /// development sets: 0.84-0.89, the turn read within 2.3 degrees, better than none);
 /// a foot seen at under 0.8 has lost 5 cm or more, toes as likely as heel (0.46 and
 /// 0.64 there: pale bare feet whose toes the mask lost, a turn read 9 degrees wrong).
-const MIN_LENGTH_SHARE: f64 = 0.8;
+pub const MIN_LENGTH_SHARE: f64 = 0.8;
 /// Fewest clear scans per foot.
-const MIN_HEIGHTS: usize = 2;
+pub const MIN_HEIGHTS: usize = 2;
 /// Largest turn believed, radians (10 degrees): beyond, a foot placed ahead of the other
 /// or a lost toe, not a turn of the body.
 pub const MAX_TURN_RAD: f64 = 10.0 * std::f64::consts::PI / 180.0;
