@@ -610,13 +610,10 @@ impl Fitter {
                     // A turned candidate's sections are mapped in its own axes: its
                     // targets turned back with it, the mapped targets turned forward.
                     Some((t, about)) => {
+                        let back = turn::Turning::new(about, -t.yaw);
                         self.targets_square.clear();
-                        self.targets_square.extend(self.targets.iter().map(|p| {
-                            p.map(|mut p| {
-                                turn::turn(std::slice::from_mut(&mut p), about, -t.yaw);
-                                p
-                            })
-                        }));
+                        self.targets_square
+                            .extend(self.targets.iter().map(|p| p.map(|p| back.apply(p))));
                         plan.targets(
                             &s.rest_square,
                             &s.controls,
@@ -625,8 +622,9 @@ impl Fitter {
                             &mut self.section_scratch,
                             &mut self.vertex_targets,
                         );
+                        let forward = turn::Turning::new(about, t.yaw);
                         for p in self.vertex_targets.iter_mut().flatten() {
-                            turn::turn(std::slice::from_mut(p), about, t.yaw);
+                            *p = forward.apply(*p);
                         }
                     }
                     None => plan.targets(

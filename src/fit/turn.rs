@@ -250,11 +250,11 @@ pub fn turn_from_toes(
 /// Front (largest z) of a foot's toe region (its vertices up to [`SCAN_TOP_M`] over
 /// `sole_y`) after turning it by `yaw` about the vertical through `about`.
 fn toe_front_turned(points: &[DVec3], sole_y: f64, about: DVec3, yaw: f64) -> f64 {
-    let (s, c) = yaw.sin_cos();
+    let t = Turning::new(about, yaw);
     points
         .iter()
         .filter(|p| p.y <= sole_y + SCAN_TOP_M)
-        .map(|p| about.z - s * (p.x - about.x) + c * (p.z - about.z))
+        .map(|p| t.apply(*p).z)
         .fold(f64::MIN, f64::max)
 }
 
@@ -294,13 +294,38 @@ fn heel_back(cam: &Camera, mask: MaskRef<'_>, x: f64, y: f64, heel_z: f64) -> Op
     Some(a + t * (b - a))
 }
 
+/// A turn by `yaw` about the vertical line through `about` (its y ignored), its sine and
+/// cosine taken once.
+#[derive(Debug, Clone, Copy)]
+pub struct Turning {
+    about: DVec3,
+    sin: f64,
+    cos: f64,
+}
+
+impl Turning {
+    pub fn new(about: DVec3, yaw: f64) -> Turning {
+        let (sin, cos) = yaw.sin_cos();
+        Turning { about, sin, cos }
+    }
+
+    /// `p` turned.
+    #[inline]
+    pub fn apply(&self, p: DVec3) -> DVec3 {
+        let (dx, dz) = (p.x - self.about.x, p.z - self.about.z);
+        DVec3::new(
+            self.about.x + self.cos * dx + self.sin * dz,
+            p.y,
+            self.about.z - self.sin * dx + self.cos * dz,
+        )
+    }
+}
+
 /// Turns `positions` by `yaw` about the vertical line through `about` (its y ignored).
 pub fn turn(positions: &mut [DVec3], about: DVec3, yaw: f64) {
-    let (s, c) = yaw.sin_cos();
+    let t = Turning::new(about, yaw);
     for p in positions.iter_mut() {
-        let (dx, dz) = (p.x - about.x, p.z - about.z);
-        p.x = about.x + c * dx + s * dz;
-        p.z = about.z - s * dx + c * dz;
+        *p = t.apply(*p);
     }
 }
 
