@@ -15,7 +15,8 @@
 //! 3. [`scale_thighs`]: each thigh scaled radially about its own axis to the person's
 //!    thigh circumference (fading out towards the knee and above the crotch).
 //! 4. [`warp_sections`]: at the chest, waist and buttock levels the trunk's breadth (x)
-//!    and depth (z) are scaled about the trunk's centre to the person's values,
+//!    and depth (z) are scaled about the trunk's centre to the person's values (at the
+//!    chest, depth and circumference: its breadth follows, [`CHEST_BREADTH_FROM_GIRTH`]),
 //!    independently per level (the chest's depth about a point nearer the back, so that
 //!    it grows mostly in front), the scales blended smoothly in height between levels
 //!    (zero slope at each level, so the level's section is scaled exactly). The arms are
@@ -57,6 +58,17 @@ const THIGH_FADE_ABOVE_M: f64 = 0.06;
 /// Where the chest's depth is scaled about, as a fraction of its depth from the back
 /// (women, men): a woman's deeper chest is mostly bust, a man's rib cage.
 const CHEST_DEPTH_PIVOT: (f64, f64) = (0.25, 0.45);
+/// The chest level takes the person's chest depth and circumference, and its breadth
+/// follows from them. ANSUR II's chest breadth is a caliper's, against the chest wall
+/// under the hanging arms, not the trunk's whole width: over ANSUR II the chest
+/// circumference is a median 1.22 times the perimeter of the ellipse of the chest
+/// breadth and depth (a rounded box is about 1.1), where the waist's is 1.06 and the
+/// buttocks' 1.09 (`python3 tools/ansur_priors.py`). A body's trunk section with the
+/// person's chest breadth as its width fell up to 193 mm short of the person's chest
+/// circumference (the `ansur` sets made before 2026-11-28: dev seeds 20300-20323,
+/// chest girth minus the person's -193 to +40 mm, men -43 to -193). Waist and buttocks
+/// keep breadth and depth.
+const CHEST_BREADTH_FROM_GIRTH: bool = true;
 /// Height spread of the bust lobes, metres.
 const BUST_SIGMA_M: f64 = 0.055;
 /// Bounds of the per-level and thigh scales (a guard against a body the library
@@ -137,11 +149,14 @@ pub struct LevelFit {
     pub height_m: f64,
     pub target_breadth_m: f64,
     pub target_depth_m: f64,
+    /// The person's girth the level's breadth was chosen for (the chest's), metres.
+    pub target_girth_m: Option<f64>,
     /// Scales applied (breadth, depth).
     pub scale: [f64; 2],
-    /// Breadth and depth of the finished body at the level.
+    /// Breadth, depth and convex-hull girth of the finished body at the level.
     pub breadth_m: f64,
     pub depth_m: f64,
+    pub girth_m: f64,
 }
 
 /// The built body and how its targets were met.
@@ -229,6 +244,7 @@ pub fn build(lib: &ShapeLibrary, subject: &AnsurSubject) -> Result<AnsurBody, Su
         })?;
         f.breadth_m = e.breadth();
         f.depth_m = e.depth();
+        f.girth_m = trunk_loop(&mesh, f.height_m).map_or(f64::NAN, |l| hull_perimeter(&l.points));
     }
     mesh.validate().map_err(SubjectError::Invalid)?;
     Ok(AnsurBody {
@@ -410,12 +426,50 @@ impl Extent {
 /// The trunk's section at height `y`: the loop that straddles the body axis (x = 0)
 /// with the largest bounding box.
 fn trunk_extent(mesh: &TriMesh, y: f64) -> Option<Extent> {
+    trunk_loop(mesh, y).as_ref().map(Extent::of)
+}
+
+/// The loop of [`trunk_extent`].
+fn trunk_loop(mesh: &TriMesh, y: f64) -> Option<SectionLoop> {
     slice(mesh, &Plane::horizontal(y))
-        .iter()
+        .into_iter()
         .filter(|l| l.points.len() > 2)
-        .map(Extent::of)
-        .filter(|e| e.x0 < -TRUNK_STRADDLE_M && e.x1 > TRUNK_STRADDLE_M)
-        .max_by(|a, b| (a.breadth() * a.depth()).total_cmp(&(b.breadth() * b.depth())))
+        .map(|l| (Extent::of(&l), l))
+        .filter(|(e, _)| e.x0 < -TRUNK_STRADDLE_M && e.x1 > TRUNK_STRADDLE_M)
+        .max_by(|a, b| (a.0.breadth() * a.0.depth()).total_cmp(&(b.0.breadth() * b.0.depth())))
+        .map(|(_, l)| l)
+}
+
+/// The breadth scale (about `centre.x`) that, with the depth scaled by `sz` about
+/// `centre.y`, gives the section `points` (x, z) the convex-hull girth `girth_m`:
+/// bisection (the girth grows with the breadth), within [`SCALE_RANGE`].
+fn breadth_scale_for_girth(points: &[DVec2], centre: DVec2, sz: f64, girth_m: f64) -> f64 {
+    let mut mapped = Vec::with_capacity(points.len());
+    let mut girth = |sx: f64| {
+        mapped.clear();
+        mapped.extend(
+            points
+                .iter()
+                .map(|p| centre + (*p - centre) * DVec2::new(sx, sz)),
+        );
+        hull_perimeter(&mapped)
+    };
+    let (mut lo, mut hi) = SCALE_RANGE;
+    if girth(lo) >= girth_m {
+        return lo;
+    }
+    if girth(hi) <= girth_m {
+        return hi;
+    }
+    for _ in 0..40 {
+        let mid = 0.5 * (lo + hi);
+        if girth(mid) < girth_m {
+            lo = mid
+        } else {
+            hi = mid
+        }
+    }
+    0.5 * (lo + hi)
 }
 
 /// Whether the section at `y` has a loop reaching `reach` to each side of x = 0.
@@ -774,19 +828,26 @@ fn warp_sections(
     lv: &Levels,
     r: &AnsurRecord,
 ) -> Result<Vec<LevelFit>, SubjectError> {
+    // The chest's breadth follows from its girth (see [`CHEST_BREADTH_FROM_GIRTH`]).
     let targets = [
-        ("buttock", lv.buttock, r.hipbreadth, r.buttockdepth),
-        ("waist", lv.waist, r.waistbreadth, r.waistdepth),
-        ("chest", lv.chest, r.chestbreadth, r.chestdepth),
+        ("buttock", lv.buttock, r.hipbreadth, r.buttockdepth, None),
+        ("waist", lv.waist, r.waistbreadth, r.waistdepth, None),
+        (
+            "chest",
+            lv.chest,
+            r.chestbreadth,
+            r.chestdepth,
+            CHEST_BREADTH_FROM_GIRTH.then_some(r.chestcircumference),
+        ),
     ];
     let mut knots = Vec::with_capacity(5);
     let mut fits = Vec::with_capacity(3);
-    for (name, y, breadth_mm, depth_mm) in targets {
-        let e = trunk_extent(mesh, y)
+    for (name, y, breadth_mm, depth_mm, girth_mm) in targets {
+        let l = trunk_loop(mesh, y)
             .ok_or_else(|| SubjectError::Invalid(format!("no trunk at the {name} level")))?;
-        let (tb, td) = (breadth_mm * 1e-3, depth_mm * 1e-3);
-        let scale = DVec2::new(tb / e.breadth(), td / e.depth())
-            .clamp(DVec2::splat(SCALE_RANGE.0), DVec2::splat(SCALE_RANGE.1));
+        let e = Extent::of(&l);
+        let td = depth_mm * 1e-3;
+        let sz = (td / e.depth()).clamp(SCALE_RANGE.0, SCALE_RANGE.1);
         // The chest deepens mostly in front (the bust) for women, about evenly for men.
         let pivot = if name == "chest" {
             match r.sex {
@@ -796,19 +857,23 @@ fn warp_sections(
         } else {
             0.5
         };
-        knots.push(Knot {
-            y,
-            scale,
-            centre: DVec2::new(e.centre().x, e.z0 + pivot * e.depth()),
-        });
+        let centre = DVec2::new(e.centre().x, e.z0 + pivot * e.depth());
+        let sx = match girth_mm {
+            Some(g) => breadth_scale_for_girth(&l.points, centre, sz, g * 1e-3),
+            None => (breadth_mm * 1e-3 / e.breadth()).clamp(SCALE_RANGE.0, SCALE_RANGE.1),
+        };
+        let scale = DVec2::new(sx, sz);
+        knots.push(Knot { y, scale, centre });
         fits.push(LevelFit {
             name: name.into(),
             height_m: y,
-            target_breadth_m: tb,
+            target_breadth_m: e.breadth() * sx,
             target_depth_m: td,
+            target_girth_m: girth_mm.map(|g| g * 1e-3),
             scale: scale.to_array(),
             breadth_m: e.breadth(),
             depth_m: e.depth(),
+            girth_m: hull_perimeter(&l.points),
         });
     }
     let bottom = Knot {
@@ -945,6 +1010,10 @@ mod tests {
                 );
                 assert!((bw - f.target_breadth_m).abs() < 0.004, "{f:?}");
                 assert!((dp - f.target_depth_m).abs() < 0.004, "{f:?}");
+                if let Some(g) = f.target_girth_m {
+                    eprintln!("  girth {:.1}/{:.1} mm", f.girth_m * 1e3, g * 1e3);
+                    assert!((f.girth_m - g).abs() < 0.005, "{f:?}");
+                }
             }
             for side in [1.0, -1.0] {
                 let g = (0..=28)
