@@ -16,7 +16,8 @@
 //!    thigh circumference (fading out towards the knee and above the crotch).
 //! 4. [`warp_sections`]: at the chest, waist and buttock levels the trunk's breadth (x)
 //!    and depth (z) are scaled about the trunk's centre to the person's values (at the
-//!    chest, depth and circumference: its breadth follows, [`CHEST_BREADTH_FROM_GIRTH`]),
+//!    chest, depth and circumference: its breadth follows, [`CHEST_BREADTH_FROM_GIRTH`];
+//!    at the waist, its circumference too, by a corner push: [`WAIST_FULLNESS_FROM_GIRTH`]),
 //!    independently per level (the chest's depth about a point nearer the back, so that
 //!    it grows mostly in front), the scales blended smoothly in height between levels
 //!    (zero slope at each level, so the level's section is scaled exactly). The arms are
@@ -67,7 +68,7 @@ const CHEST_DEPTH_PIVOT: (f64, f64) = (0.25, 0.45);
 /// person's chest breadth as its width fell up to 193 mm short of the person's chest
 /// circumference (the `ansur` sets made before 2026-11-28: dev seeds 20300-20323,
 /// chest girth minus the person's -193 to +40 mm, men -43 to -193). Waist and buttocks
-/// keep breadth and depth.
+/// keep breadth and depth (the waist takes its girth too: [`WAIST_FULLNESS_FROM_GIRTH`]).
 const CHEST_BREADTH_FROM_GIRTH: bool = true;
 /// The waist level takes the person's waist circumference as well as breadth and depth:
 /// its section is made fuller or rounder between its four rims (a superellipse corner

@@ -31,8 +31,9 @@
 //!   - `--population ansur`: each subject follows one real ANSUR II person
 //!     ([`ansur`], data in `../shared/data/ansur2`, `--ansur-dir` to move it; row drawn
 //!     from the seed, sexes alternating), the library body warped section-wise to the
-//!     person's stature, crotch height, chest/waist/buttock breadths and depths and
-//!     thigh circumference, plus local shape variation ([`ansur_body`]);
+//!     person's stature, crotch height, chest depth and circumference, waist breadth,
+//!     depth and circumference, buttock breadth and depth and thigh circumference, plus
+//!     local shape variation ([`ansur_body`]);
 //!     truth.json gains an `ansur` object (id, sex, values used).
 //!   - `--stance varied`: arms, elbows, legs and a turn of the whole body drawn per
 //!     subject, posed with a skinning that is not the fit's ([`stance`]); truth.json
