@@ -110,7 +110,14 @@ for name, circ, breadth, depth in [
 ]:
     r = col(circ) / ellipse_perimeter(col(breadth), col(depth))
     q = np.percentile(r, [50, 25, 75, 5, 95])
-    print(f"{name:8} {q[0]:17.3f} {q[1]:6.3f} {q[2]:6.3f} {q[3]:6.3f} {q[4]:6.3f}")
+    by_sex = f"women {np.median(r[sex == 0.0]):.3f}, men {np.median(r[sex == 1.0]):.3f}"
+    print(f"{name:8} {q[0]:17.3f} {q[1]:6.3f} {q[2]:6.3f} {q[3]:6.3f} {q[4]:6.3f}   (median {by_sex})")
+print()
+
+# The hand's reach beyond the wrist, as a share of the forearm (radiale to stylion): what
+# a hand capsule from the side view's elbow and wrist keypoints must cover.
+hand = col("handlength") / col("radialestylionlength")
+print(f"hand length / radiale-stylion length: median {np.median(hand):.3f}, p95 {np.percentile(hand, 95):.3f}")
 print()
 
 # What two silhouettes can say at best: each girth predicted, on half of ANSUR II, from
