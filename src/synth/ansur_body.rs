@@ -455,20 +455,30 @@ fn trunk_loop(mesh: &TriMesh, y: f64) -> Option<SectionLoop> {
 }
 
 /// The breadth scale (about `centre.x`) that, with the depth scaled by `sz` about
-/// `centre.y`, gives the section `points` (x, z) the convex-hull girth `girth_m`:
-/// bisection (the girth grows with the breadth), within [`SCALE_RANGE`].
+/// `centre.y`, gives the section `points` (x, z) the convex-hull girth `girth_m`, within
+/// [`SCALE_RANGE`] (the girth grows with the breadth).
 fn breadth_scale_for_girth(points: &[DVec2], centre: DVec2, sz: f64, girth_m: f64) -> f64 {
+    girth_root(points, girth_m, SCALE_RANGE, |p, sx| {
+        centre + (p - centre) * DVec2::new(sx, sz)
+    })
+}
+
+/// The parameter `t` within `range` at which the convex-hull girth of `points`, each
+/// moved by `map(point, t)`, is `girth_m`: bisection, for a girth that grows with `t`
+/// (the range's end when the girth is out of its reach).
+fn girth_root(
+    points: &[DVec2],
+    girth_m: f64,
+    range: (f64, f64),
+    map: impl Fn(DVec2, f64) -> DVec2,
+) -> f64 {
     let mut mapped = Vec::with_capacity(points.len());
-    let mut girth = |sx: f64| {
+    let mut girth = |t: f64| {
         mapped.clear();
-        mapped.extend(
-            points
-                .iter()
-                .map(|p| centre + (*p - centre) * DVec2::new(sx, sz)),
-        );
+        mapped.extend(points.iter().map(|&p| map(p, t)));
         hull_perimeter(&mapped)
     };
-    let (mut lo, mut hi) = SCALE_RANGE;
+    let (mut lo, mut hi) = range;
     if girth(lo) >= girth_m {
         return lo;
     }
@@ -860,35 +870,20 @@ fn corner_factor(q: DVec2, n: f64) -> f64 {
     (c.powf(n) + s.powf(n)).powf(-1.0 / n)
 }
 
+/// `p` moved by the corner push of exponent `n` about `centre`, in half extents `half`
+/// ([`corner_factor`]).
+fn corner_pushed(p: DVec2, centre: DVec2, half: DVec2, n: f64) -> DVec2 {
+    let d = p - centre;
+    centre + d * corner_factor(d / half, n)
+}
+
 /// The superellipse exponent whose corner push gives the section `points` (x, z, about
-/// `centre`, in half extents `half`) the convex-hull girth `girth_m` (bisection within
-/// [`EXPONENT_RANGE`]; the girth grows with the exponent).
+/// `centre`, in half extents `half`) the convex-hull girth `girth_m`, within
+/// [`EXPONENT_RANGE`] (the girth grows with the exponent).
 fn exponent_for_girth(points: &[DVec2], centre: DVec2, half: DVec2, girth_m: f64) -> f64 {
-    let mut mapped = Vec::with_capacity(points.len());
-    let mut girth = |n: f64| {
-        mapped.clear();
-        mapped.extend(points.iter().map(|p| {
-            let d = *p - centre;
-            centre + d * corner_factor(d / half, n)
-        }));
-        hull_perimeter(&mapped)
-    };
-    let (mut lo, mut hi) = EXPONENT_RANGE;
-    if girth(lo) >= girth_m {
-        return lo;
-    }
-    if girth(hi) <= girth_m {
-        return hi;
-    }
-    for _ in 0..40 {
-        let mid = 0.5 * (lo + hi);
-        if girth(mid) < girth_m {
-            lo = mid
-        } else {
-            hi = mid
-        }
-    }
-    0.5 * (lo + hi)
+    girth_root(points, girth_m, EXPONENT_RANGE, |p, n| {
+        corner_pushed(p, centre, half, n)
+    })
 }
 
 /// Step 4: the section warps (see the module docs). Returns the levels' fits (the
@@ -942,26 +937,26 @@ fn warp_sections(
         // depth and exponent are found together by a few rounds of each in turn.
         if name == "waist" && WAIST_FULLNESS_FROM_GIRTH {
             let want = DVec2::new(breadth_mm, depth_mm) * 1e-3;
+            let girth = r.waistcircumference * 1e-3;
+            half = 0.5 * want;
             let mut scaled = Vec::with_capacity(l.points.len());
-            for _ in 0..WAIST_ROUNDS {
+            for round in 0..=WAIST_ROUNDS {
                 scaled.clear();
                 scaled.extend(l.points.iter().map(|p| centre + (*p - centre) * scale));
-                half = 0.5 * want;
-                exponent = exponent_for_girth(&scaled, centre, half, r.waistcircumference * 1e-3);
-                let pushed = scaled.iter().map(|p| {
-                    let d = *p - centre;
-                    centre + d * corner_factor(d / half, exponent)
-                });
-                let (lo, hi) = pushed.fold(
-                    (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
-                    |(lo, hi), q| (lo.min(q), hi.max(q)),
-                );
+                exponent = exponent_for_girth(&scaled, centre, half, girth);
+                if round == WAIST_ROUNDS {
+                    break;
+                }
+                let (lo, hi) = scaled
+                    .iter()
+                    .map(|&p| corner_pushed(p, centre, half, exponent))
+                    .fold(
+                        (DVec2::splat(f64::INFINITY), DVec2::splat(f64::NEG_INFINITY)),
+                        |(lo, hi), q| (lo.min(q), hi.max(q)),
+                    );
                 scale = (scale * want / (hi - lo))
                     .clamp(DVec2::splat(SCALE_RANGE.0), DVec2::splat(SCALE_RANGE.1));
             }
-            scaled.clear();
-            scaled.extend(l.points.iter().map(|p| centre + (*p - centre) * scale));
-            exponent = exponent_for_girth(&scaled, centre, half, r.waistcircumference * 1e-3);
         }
         knots.push(Knot {
             y,
@@ -1047,10 +1042,9 @@ fn warp_sections(
         *p += d;
         // The trunk's (and the legs' tops') corner push about the waist.
         if !l.is_arm() && (k.exponent - 2.0).abs() > 1e-9 {
-            let q = DVec2::new(p.x, p.z) - c;
-            let f = corner_factor(q / k.half, k.exponent);
-            p.x = c.x + q.x * f;
-            p.z = c.y + q.y * f;
+            let q = corner_pushed(DVec2::new(p.x, p.z), c, k.half, k.exponent);
+            p.x = q.x;
+            p.z = q.y;
         }
     }
     Ok(fits)
