@@ -42,7 +42,7 @@ def main():
             cells = []
             for g in GIRTHS:
                 e = np.array(errors.get((sex, g), []))
-                cells.append(f"{g[:-6] if g.endswith('_girth') else g.replace('_girth', '')} "
+                cells.append(f"{g.replace('_girth', '')} "
                              + (f"{np.abs(e).mean():.1f} / {e.mean():+.1f} ({len(e)})" if len(e) else "-"))
             print(f"{sex:7} " + "   ".join(cells))
 
