@@ -727,9 +727,12 @@ fn drop_foreign_edges(
         for (e, c) in constraints.iter_mut().enumerate() {
             let Some((_, t)) = c[side] else { continue };
             let on_trend = tight.get(k).copied().unwrap_or(true);
-            let plausible = loose
-                .as_ref()
-                .map_or(on_trend, |l| l.get(k).copied().unwrap_or(true));
+            // On the tight trend is plausible too: the loose trend, pulled by hands and a
+            // bust, can leave the trunk's own stretch of edges as inward outliers.
+            let plausible = on_trend
+                || loose
+                    .as_ref()
+                    .is_some_and(|l| l.get(k).copied().unwrap_or(true));
             // In the side view, an edge inside a known limb's capsule may be the limb's.
             let seen = DVec3::new(scratch.edge_x[e][side], scratch.centres[e], t);
             let in_limb = known
@@ -1239,6 +1242,59 @@ mod tests {
         assert!(
             !upper_arm.outline_covers_seen(beyond - DVec3::new(0.0, 0.0, 0.02), OCCLUDER_MARGIN_M)
         );
+    }
+
+    #[test]
+    fn the_trunks_own_stretch_on_the_tight_trend_is_kept_when_fingers_pull_the_loose_one() {
+        // Front edges of the side view relative to the candidate's rim, every 2 cm up the
+        // trunk: the candidate's own front low down, then the person's lower belly 3.5 cm
+        // flatter than the candidate's, fingers 3 cm out, a stretch hidden by the
+        // forearms, and a bust 1.5 cm out. The loose (known-limb) trend takes the fingers
+        // and the bust in and leaves the belly more than its inward tolerance below it.
+        let mut pts = Vec::new();
+        let mut y = 0.8;
+        for (count, d) in [(15, 0.0), (6, -0.035), (3, 0.03)] {
+            for _ in 0..count {
+                pts.push((y, d));
+                y += 0.02;
+            }
+        }
+        y += 0.2;
+        for _ in 0..15 {
+            pts.push((y, 0.015));
+            y += 0.02;
+        }
+        let (ys, ds): (Vec<f64>, Vec<f64>) = pts.iter().copied().unzip();
+        let belly = 15..21;
+        let loose = outward_inliers(&ys, &ds, KNOWN_OCCLUDERS_OUTWARD_TOLERANCE_M);
+        assert!(!loose[belly.clone()].iter().any(|&k| k), "{loose:?}");
+        let tight = outward_inliers(&ys, &ds, Axis::Z.outward_tolerance());
+        assert!(tight[belly.clone()].iter().all(|&k| k), "{tight:?}");
+        // A known limb far from every edge: the limbs are known, none covers an edge.
+        let far_limb = SideOccluder {
+            a: glam::DVec2::new(3.0, 1.0),
+            b: glam::DVec2::new(3.1, 1.0),
+            radius: 0.04,
+            x: 0.3,
+            eye: DVec3::new(3.0, 1.0, 0.0),
+        };
+        let mut scratch = SectionScratch {
+            centres: ys.clone(),
+            edge_x: vec![[0.0; 2]; ys.len()],
+            ..Default::default()
+        };
+        let rim = 0.12;
+        let mut constraints: Vec<[Option<(f64, f64)>; 2]> =
+            ds.iter().map(|&d| [Some((rim, rim + d)), None]).collect();
+        drop_foreign_edges(Axis::Z, &[Some(far_limb)], &mut scratch, &mut constraints);
+        let kept: Vec<bool> = constraints.iter().map(|c| c[0].is_some()).collect();
+        assert!(
+            kept[belly].iter().all(|&k| k),
+            "the belly dropped: {kept:?}"
+        );
+        // The fingers stand out of the tight trend where no limb is: the part's own by
+        // the known-limb rule (a belly the candidate lacks), as before.
+        assert!(kept[21..24].iter().all(|&k| k), "{kept:?}");
     }
 
     #[test]
