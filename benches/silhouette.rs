@@ -1,6 +1,6 @@
 //! Criterion benches of the silhouette stage on phantom frames (720 x 1280, the pixel
 //! count of a 1280 x 720 frame): segmentation of one view, the whole stage on one frame
-//! pair, and point undistortion of a contour. Budget (issue 4): undistort + segment +
+//! pair, the still-picture gate on a pair's masks, and point undistortion of a contour. Budget (issue 4): undistort + segment +
 //! contour + landmarks under 4 ms per frame on one core.
 
 use criterion::{criterion_group, criterion_main, Criterion};
@@ -131,6 +131,18 @@ fn bench(c: &mut Criterion) {
         b.iter(|| {
             ex.process_into(black_box(&ff), black_box(&fs), &mut out)
                 .expect("process")
+        })
+    });
+
+    // The still-picture gate on the pair's final masks (the station's per-frame compare).
+    let masks = [out.masks.front.clone(), out.masks.side.clone()];
+    let mut gate = fitstation::station::motion::MotionGate::default();
+    let mut verdicts = Vec::new();
+    c.bench_function("motion_gate_frame_pair", |b| {
+        b.iter(|| {
+            verdicts.clear();
+            gate.observe([black_box(&masks[0]), black_box(&masks[1])], &mut verdicts);
+            gate.change
         })
     });
 
