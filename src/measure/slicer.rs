@@ -37,9 +37,9 @@ pub struct LevelIndex {
     bucket_h: f64,
     n_buckets: usize,
     offsets: Vec<u32>,
-    /// The bucket's triangles with their vertices and height ranges, so that a section
-    /// reads its bucket sequentially and rejects the triangles it does not cross
-    /// without fetching their vertices.
+    /// The bucket's triangles with their height and x ranges, so that a section reads
+    /// its bucket sequentially and rejects the triangles it does not cross without
+    /// fetching their vertices.
     entries: Vec<Entry>,
     counts: Vec<u32>,
     ranges: Vec<(f64, f64)>,
@@ -60,7 +60,6 @@ pub struct LevelIndex {
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Entry {
     pub triangle: u32,
-    pub vertices: [u32; 3],
     /// Lowest and highest y of the triangle, single precision (compare with
     /// [`RANGE_SLACK_M`]).
     pub y_range: [f32; 2],
@@ -173,7 +172,6 @@ impl LevelIndex {
             let xs = mesh.triangles[i].map(|v| mesh.positions[v as usize].x);
             let entry = Entry {
                 triangle: i as u32,
-                vertices: mesh.triangles[i],
                 y_range: [lo as f32, hi as f32],
                 x_range: [
                     xs[0].min(xs[1]).min(xs[2]) as f32,
