@@ -327,6 +327,8 @@ pub struct SectionScratch {
     parent: Vec<u32>,
     /// Segments still to grow from in [`SectionScratch::cut_across_x`].
     stack: Vec<u32>,
+    /// First segment of each growth of [`SectionScratch::cut_across_x`].
+    tree_starts: Vec<u32>,
     /// Loop label of each segment, then segments grouped by loop.
     label: Vec<u32>,
     grouped: Vec<u32>,
@@ -413,6 +415,8 @@ impl SectionScratch {
     pub fn cut_across_x(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64, axis_x: f64) {
         self.begin(mesh);
         let mut stack = std::mem::take(&mut self.stack);
+        let mut starts = std::mem::take(&mut self.tree_starts);
+        starts.clear();
         for entry in index.candidate_entries(y) {
             if !entry.may_cross(y) || self.visited(entry.triangle) {
                 continue;
@@ -425,6 +429,7 @@ impl SectionScratch {
             if !self.add_segment(mesh, index, entry.triangle, y) {
                 continue;
             }
+            starts.push(self.segs.len() as u32 - 1);
             stack.clear();
             stack.push(self.segs.len() as u32 - 1);
             while let Some(s) = stack.pop() {
@@ -441,7 +446,72 @@ impl SectionScratch {
             }
         }
         self.stack = stack;
-        self.split_into_loops();
+        // Each growth is one loop: its segments are contiguous, so the loops need no
+        // union-find (the same loops, in the same order, as `split_into_loops` gives).
+        let grown = self.label_grown(&starts);
+        self.tree_starts = starts;
+        if !grown {
+            self.split_into_loops();
+        }
+    }
+
+    /// Labels the loops of [`SectionScratch::cut_across_x`] from its growths (segments
+    /// `starts[l]..starts[l + 1]` are loop `l`), as `split_into_loops` and `group` would:
+    /// the same shared-point ownership, loop order, extents and segment ranges. Returns
+    /// false, having labelled nothing usable, if a segment's neighbour lies in another
+    /// growth (a neighbour table that does not link both ways).
+    fn label_grown(&mut self, starts: &[u32]) -> bool {
+        let n = self.segs.len();
+        self.label.clear();
+        self.label.resize(n, 0);
+        for (l, &s0) in starts.iter().enumerate() {
+            let s1 = starts.get(l + 1).map_or(n, |&e| e as usize);
+            self.label[s0 as usize..s1].fill(l as u32);
+        }
+        self.owned.clear();
+        for s in 0..n {
+            let (t, across) = self.seg_tri[s];
+            let mut owned = [true; 2];
+            for (k, nb) in across.into_iter().enumerate() {
+                if nb == NO_NEIGHBOUR {
+                    continue;
+                }
+                let (stamp, other) = self.seg_of_tri[nb as usize];
+                if stamp != self.epoch {
+                    continue;
+                }
+                if self.label[other as usize] != self.label[s] {
+                    return false;
+                }
+                owned[k] = nb > t;
+            }
+            self.owned.push(owned);
+        }
+        self.loops.clear();
+        for (l, &s0) in starts.iter().enumerate() {
+            let s1 = starts.get(l + 1).map_or(n as u32, |&e| e);
+            let mut info = LoopInfo {
+                x_min: f64::INFINITY,
+                x_max: f64::NEG_INFINITY,
+                z_min: f64::INFINITY,
+                z_max: f64::NEG_INFINITY,
+                seg_start: s0,
+                seg_end: s1,
+            };
+            for seg in &self.segs[s0 as usize..s1 as usize] {
+                for p in seg {
+                    info.x_min = info.x_min.min(p.x);
+                    info.x_max = info.x_max.max(p.x);
+                    info.z_min = info.z_min.min(p.y);
+                    info.z_max = info.z_max.max(p.y);
+                }
+            }
+            self.loops.push(info);
+        }
+        self.grouped.clear();
+        self.grouped.extend(0..n as u32);
+        self.is_grouped = true;
+        true
     }
 
     /// Unions the segments of the section into loops and labels them.
