@@ -325,9 +325,9 @@ pub struct SectionScratch {
     seg_of_tri: Vec<(u32, u32)>,
     epoch: u32,
     parent: Vec<u32>,
-    /// Segments still to grow from in [`SectionScratch::cut_across_x`].
+    /// Segments still to grow from in [`SectionScratch::grow_cut`].
     stack: Vec<u32>,
-    /// First segment of each growth of [`SectionScratch::cut_across_x`].
+    /// First segment of each growth of [`SectionScratch::grow_cut`].
     tree_starts: Vec<u32>,
     /// Loop label of each segment, then segments grouped by loop.
     label: Vec<u32>,
@@ -398,13 +398,7 @@ impl SectionScratch {
     /// for this mesh) and splits the cut into loops: segments of triangles that share
     /// a crossed edge belong to the same loop.
     pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
-        self.begin(mesh);
-        for entry in index.candidate_entries(y) {
-            if entry.may_cross(y) {
-                self.add_segment(mesh, index, entry.triangle, y);
-            }
-        }
-        self.split_into_loops();
+        self.grow_cut(mesh, index, y, None);
     }
 
     /// As [`SectionScratch::cut`], keeping only the loops that cross the vertical plane
@@ -413,6 +407,14 @@ impl SectionScratch {
     /// so every such loop comes out exactly as the full cut gives it, and loops away
     /// from the axis (arms, hands) are never cut.
     pub fn cut_across_x(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64, axis_x: f64) {
+        self.grow_cut(mesh, index, y, Some(axis_x));
+    }
+
+    /// The cut at `y` grown loop by loop: from each candidate triangle that crosses the
+    /// plane and is not yet in a loop (with `across_x`, only those spanning that x),
+    /// across crossed edges. A loop's segments are then contiguous, so the loops are
+    /// labelled without a union-find (see [`SectionScratch::label_grown`]).
+    fn grow_cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64, across_x: Option<f64>) {
         self.begin(mesh);
         let mut stack = std::mem::take(&mut self.stack);
         let mut starts = std::mem::take(&mut self.tree_starts);
@@ -421,10 +423,13 @@ impl SectionScratch {
             if !entry.may_cross(y) || self.visited(entry.triangle) {
                 continue;
             }
-            let r = entry.x_range;
-            if f64::from(r[0]) > axis_x + RANGE_SLACK_M || f64::from(r[1]) < axis_x - RANGE_SLACK_M
-            {
-                continue;
+            if let Some(axis_x) = across_x {
+                let r = entry.x_range;
+                if f64::from(r[0]) > axis_x + RANGE_SLACK_M
+                    || f64::from(r[1]) < axis_x - RANGE_SLACK_M
+                {
+                    continue;
+                }
             }
             if !self.add_segment(mesh, index, entry.triangle, y) {
                 continue;
@@ -447,7 +452,8 @@ impl SectionScratch {
         }
         self.stack = stack;
         // Each growth is one loop: its segments are contiguous, so the loops need no
-        // union-find (the same loops, in the same order, as `split_into_loops` gives).
+        // union-find (the same loops, in the same order of their first candidate, as
+        // `split_into_loops` gives over the same segments).
         let grown = self.label_grown(&starts);
         self.tree_starts = starts;
         if !grown {
@@ -455,7 +461,7 @@ impl SectionScratch {
         }
     }
 
-    /// Labels the loops of [`SectionScratch::cut_across_x`] from its growths (segments
+    /// Labels the loops of [`SectionScratch::grow_cut`] from its growths (segments
     /// `starts[l]..starts[l + 1]` are loop `l`), as `split_into_loops` and `group` would:
     /// the same shared-point ownership, loop order, extents and segment ranges. Returns
     /// false, having labelled nothing usable, if a segment's neighbour lies in another
