@@ -464,7 +464,7 @@ pub fn soften_span_ends(crossings: &[(u32, f32)], width: u32, data: &mut [u8]) {
 
 /// Floor without a libm call (baseline x86-64 has no rounding instruction).
 #[inline(always)]
-fn fast_floor(v: f64) -> i64 {
+pub(crate) fn fast_floor(v: f64) -> i64 {
     let t = v as i64;
     if (t as f64) > v {
         t - 1

@@ -121,8 +121,8 @@ impl MaskRef<'_> {
         if !(p.x > -1.0 && p.y > -1.0 && p.x < w as f64 && p.y < h as f64) {
             return 0.0;
         }
-        let x0 = p.x.floor() as i64;
-        let y0 = p.y.floor() as i64;
+        let x0 = crate::contour::fast_floor(p.x);
+        let y0 = crate::contour::fast_floor(p.y);
         let (fx, fy) = (p.x - x0 as f64, p.y - y0 as f64);
         let at = |x: i64, y: i64| -> f64 {
             if x < 0 || y < 0 || x >= w || y >= h {
