@@ -298,6 +298,30 @@ pub struct LoopInfo {
     seg_end: u32,
 }
 
+impl LoopInfo {
+    /// A loop of no points yet over segments `seg_start..seg_end`.
+    fn empty(seg_start: u32, seg_end: u32) -> LoopInfo {
+        LoopInfo {
+            x_min: f64::INFINITY,
+            x_max: f64::NEG_INFINITY,
+            z_min: f64::INFINITY,
+            z_max: f64::NEG_INFINITY,
+            seg_start,
+            seg_end,
+        }
+    }
+
+    /// Widens the extents over a segment's ends.
+    fn take_in(&mut self, seg: &[DVec2; 2]) {
+        for p in seg {
+            self.x_min = self.x_min.min(p.x);
+            self.x_max = self.x_max.max(p.x);
+            self.z_min = self.z_min.min(p.y);
+            self.z_max = self.z_max.max(p.y);
+        }
+    }
+}
+
 /// Perimeter, area, centroid and extent of a convex hull.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct HullStats {
@@ -479,41 +503,22 @@ impl SectionScratch {
         }
         self.owned.clear();
         for s in 0..n {
-            let (t, across) = self.seg_tri[s];
-            let mut owned = [true; 2];
-            for (k, nb) in across.into_iter().enumerate() {
-                if nb == NO_NEIGHBOUR {
-                    continue;
-                }
-                let (stamp, other) = self.seg_of_tri[nb as usize];
-                if stamp != self.epoch {
-                    continue;
-                }
-                if self.label[other as usize] != self.label[s] {
-                    return false;
-                }
-                owned[k] = nb > t;
+            let across = self.across(s);
+            if across
+                .iter()
+                .flatten()
+                .any(|&(_, other)| self.label[other as usize] != self.label[s])
+            {
+                return false;
             }
-            self.owned.push(owned);
+            self.owned.push(self.owns(s, &across));
         }
         self.loops.clear();
         for (l, &s0) in starts.iter().enumerate() {
             let s1 = starts.get(l + 1).map_or(n as u32, |&e| e);
-            let mut info = LoopInfo {
-                x_min: f64::INFINITY,
-                x_max: f64::NEG_INFINITY,
-                z_min: f64::INFINITY,
-                z_max: f64::NEG_INFINITY,
-                seg_start: s0,
-                seg_end: s1,
-            };
+            let mut info = LoopInfo::empty(s0, s1);
             for seg in &self.segs[s0 as usize..s1 as usize] {
-                for p in seg {
-                    info.x_min = info.x_min.min(p.x);
-                    info.x_max = info.x_max.max(p.x);
-                    info.z_min = info.z_min.min(p.y);
-                    info.z_max = info.z_max.max(p.y);
-                }
+                info.take_in(seg);
             }
             self.loops.push(info);
         }
@@ -521,6 +526,25 @@ impl SectionScratch {
         self.grouped.extend(0..n as u32);
         self.is_grouped = true;
         true
+    }
+
+    /// Per crossed edge of segment `s`: the triangle across it and that triangle's
+    /// segment in this section (None: a boundary, or no segment there).
+    fn across(&self, s: usize) -> [Option<(u32, u32)>; 2] {
+        self.seg_tri[s].1.map(|nb| {
+            if nb == NO_NEIGHBOUR {
+                return None;
+            }
+            let (stamp, other) = self.seg_of_tri[nb as usize];
+            (stamp == self.epoch).then_some((nb, other))
+        })
+    }
+
+    /// Which ends segment `s` lists for hulls: a crossing point shared with a neighbour's
+    /// segment is listed by the one of the two on the larger triangle.
+    fn owns(&self, s: usize, across: &[Option<(u32, u32)>; 2]) -> [bool; 2] {
+        let t = self.seg_tri[s].0;
+        across.map(|a| a.is_none_or(|(nb, _)| nb > t))
     }
 
     /// Unions the segments of the section into loops and labels them.
@@ -531,19 +555,8 @@ impl SectionScratch {
         self.parent.extend(0..n as u32);
         self.owned.clear();
         for s in 0..n {
-            let (t, across) = self.seg_tri[s];
-            let mut owned = [true; 2];
-            for (k, nb) in across.into_iter().enumerate() {
-                if nb == NO_NEIGHBOUR {
-                    continue;
-                }
-                let (stamp, other) = self.seg_of_tri[nb as usize];
-                if stamp != self.epoch {
-                    continue;
-                }
-                // The crossing point is shared with the neighbour: one of the two
-                // segments lists it for the hull.
-                owned[k] = nb > t;
+            let across = self.across(s);
+            for &(_, other) in across.iter().flatten() {
                 let (ra, rb) = (
                     find(&mut self.parent, s as u32),
                     find(&mut self.parent, other),
@@ -552,7 +565,7 @@ impl SectionScratch {
                     self.parent[ra as usize] = rb;
                 }
             }
-            self.owned.push(owned);
+            self.owned.push(self.owns(s, &across));
         }
         // Label loops 0..L with their extents; grouping waits for a hull.
         self.is_grouped = false;
@@ -567,26 +580,13 @@ impl SectionScratch {
             let r = find(&mut self.parent, s as u32) as usize;
             if root_label[r] == u32::MAX {
                 root_label[r] = self.loops.len() as u32;
-                self.loops.push(LoopInfo {
-                    x_min: f64::INFINITY,
-                    x_max: f64::NEG_INFINITY,
-                    z_min: f64::INFINITY,
-                    z_max: f64::NEG_INFINITY,
-                    seg_start: 0,
-                    seg_end: 0,
-                });
+                self.loops.push(LoopInfo::empty(0, 0));
                 self.cursor.push(0);
             }
             let l = root_label[r];
             self.label[s] = l;
             self.cursor[l as usize] += 1;
-            let info = &mut self.loops[l as usize];
-            for p in self.segs[s] {
-                info.x_min = info.x_min.min(p.x);
-                info.x_max = info.x_max.max(p.x);
-                info.z_min = info.z_min.min(p.y);
-                info.z_max = info.z_max.max(p.y);
-            }
+            self.loops[l as usize].take_in(&self.segs[s]);
         }
         self.grouped = root_label;
     }
@@ -762,6 +762,32 @@ mod tests {
                 "y {y}: {mine} vs {}",
                 hull_perimeter(&pts)
             );
+        }
+    }
+
+    #[test]
+    fn the_grown_loops_equal_the_union_finds() {
+        // Two prisms and a lone triangle row: the loops labelled from the growths and
+        // those of the union-find fallback, over the same segments, agree in order,
+        // extents, ranges, shared-point ownership and hulls.
+        let mut a = shapes::elliptic_cylinder(0.1, 0.07, 1.0, 5, 40);
+        let b = shapes::elliptic_cylinder(0.05, 0.05, 1.0, 4, 24);
+        let off = a.positions.len() as u32;
+        a.positions
+            .extend(b.positions.iter().map(|p| *p + DVec3::new(0.4, 0.1, 0.0)));
+        a.triangles
+            .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
+        for y in [0.33, 0.5, 0.77] {
+            let mut grown = cut_all(&a, y);
+            let mut unioned = grown.clone();
+            unioned.split_into_loops();
+            assert_eq!(grown.loops().len(), 2);
+            assert_eq!(grown.owned, unioned.owned);
+            for i in 0..2 {
+                let (g, u) = (grown.loop_hull(i), unioned.loop_hull(i));
+                assert_eq!(g, u, "loop {i} at {y}");
+                assert_eq!(grown.loops()[i], unioned.loops()[i], "loop {i} at {y}");
+            }
         }
     }
 
