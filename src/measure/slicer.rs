@@ -765,18 +765,25 @@ mod tests {
         }
     }
 
-    #[test]
-    fn the_grown_loops_equal_the_union_finds() {
-        // Two prisms and a lone triangle row: the loops labelled from the growths and
-        // those of the union-find fallback, over the same segments, agree in order,
-        // extents, ranges, shared-point ownership and hulls.
-        let mut a = shapes::elliptic_cylinder(0.1, 0.07, 1.0, 5, 40);
-        let b = shapes::elliptic_cylinder(0.05, 0.05, 1.0, 4, 24);
+    /// `a` with `b` moved by `offset` added as a separate body.
+    fn beside(mut a: TriMesh, b: &TriMesh, offset: DVec3) -> TriMesh {
         let off = a.positions.len() as u32;
-        a.positions
-            .extend(b.positions.iter().map(|p| *p + DVec3::new(0.4, 0.1, 0.0)));
+        a.positions.extend(b.positions.iter().map(|p| *p + offset));
         a.triangles
             .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
+        a
+    }
+
+    #[test]
+    fn the_grown_loops_equal_the_union_finds() {
+        // Two prisms: the loops labelled from the growths and those of the union-find
+        // fallback, over the same segments, agree in order, extents, ranges,
+        // shared-point ownership and hulls.
+        let a = beside(
+            shapes::elliptic_cylinder(0.1, 0.07, 1.0, 5, 40),
+            &shapes::elliptic_cylinder(0.05, 0.05, 1.0, 4, 24),
+            DVec3::new(0.4, 0.1, 0.0),
+        );
         for y in [0.33, 0.5, 0.77] {
             let mut grown = cut_all(&a, y);
             let mut unioned = grown.clone();
@@ -793,13 +800,11 @@ mod tests {
 
     #[test]
     fn two_separate_prisms_give_two_loops_with_their_own_hulls() {
-        let mut a = shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32);
-        let b = shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32);
-        let off = a.positions.len() as u32;
-        a.positions
-            .extend(b.positions.iter().map(|p| *p + DVec3::new(0.5, 0.0, 0.0)));
-        a.triangles
-            .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
+        let a = beside(
+            shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32),
+            &shapes::elliptic_cylinder(0.1, 0.1, 1.0, 3, 32),
+            DVec3::new(0.5, 0.0, 0.0),
+        );
         let mut s = cut_all(&a, 0.5);
         assert_eq!(s.loops().len(), 2);
         let r = 0.1;
