@@ -342,3 +342,24 @@ fn the_floor_between_the_feet_stays_floor_in_the_side_view() {
     assert!(run.iou_side >= 0.965, "IoU side {:.3}", run.iou_side);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// White leggings on a pale wall (`synth-set --first-seed 59300 --count 12
+/// --camouflage`, subject 7; found in session 24's look at session 23's judgement): the
+/// backdrop model lost the subject's right leg from mid-thigh to the knee, and the lower
+/// leg it still saw became a piece of its own whose foot stands on the floor row of the
+/// other foot. The piece's box then spanned the body's lowest row, so it was taken as
+/// lying beside the body, not below it, and never walked up its columns to the thigh:
+/// the whole lower leg was dropped (front IoU 0.885 over the full recording). The
+/// direction is now read in the piece's own columns (the body only above it: walk up).
+#[test]
+fn a_lower_leg_cut_off_at_the_knee_is_joined_to_the_body() {
+    let dir = tmp("pieces-leg");
+    let rec = member_recording(
+        &dir,
+        "white_leggings",
+        (59300, 7, SET_COUNT),
+        Some(Clothing::Camouflage),
+    );
+    assert_fitted_whole(&rec, &dir, "white leggings", 0.94);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -131,14 +131,23 @@ impl BackgroundModel {
                 }
             }
             let k = comps[c];
-            // Which way the body lies: a piece above it walks down, one below walks up;
-            // side by side they are joined by the rows they share, if at all.
-            let down = if k.min_y < b.min_y && k.max_y < b.max_y {
-                true
-            } else if k.max_y > b.max_y && k.min_y > b.min_y {
-                false
-            } else {
-                continue;
+            // Which way the body lies: in the piece's own columns, only above it (a lower
+            // leg cut off at the knee, its foot on the floor beside the other) walks up,
+            // only below it (a head over a lost shirt) walks down; side by side, or with
+            // the body on both sides, they are joined by the rows they share, if at all.
+            let columns = k.min_x as usize..(k.max_x as usize).min(cw);
+            let body_in = |rows: std::ops::Range<usize>| {
+                rows.into_iter().any(|y| {
+                    self.coarse_body[y * cw + columns.start..y * cw + columns.end]
+                        .contains(&imgproc::MASK_ON)
+                })
+            };
+            let above = body_in(b.min_y as usize..k.min_y as usize);
+            let below = body_in((k.max_y as usize + 1).min(ch)..(b.max_y as usize + 1).min(ch));
+            let down = match (above, below) {
+                (false, true) => true,
+                (true, false) => false,
+                _ => continue,
             };
             let reach = ((b.max_y - b.min_y) as usize / 2).max(1);
             let face = ((k.max_y - k.min_y) as usize / PIECE_FACE_DIV).max(2);
