@@ -597,6 +597,11 @@ impl StationProcessor {
         timer: &mut FrameTimer,
         notes: &mut Vec<String>,
     ) -> [Option<SideOccluder>; MAX_SIDE_OCCLUDERS] {
+        // The person mask's network, run on this frame, already found the side view's
+        // keypoints.
+        if let Some(out) = self.person_masks.side_pose() {
+            return self.side_limbs.adopt(out, &self.calib.side, result);
+        }
         let network_runs = self.side_limbs.due();
         let arms = match self.side_limbs.update(side_frame, &self.calib.side, result) {
             Ok(o) => o,

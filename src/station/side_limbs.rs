@@ -98,6 +98,23 @@ impl SideLimbs {
         self.model.is_some() && self.since.is_none_or(|n| n + 1 >= EVERY_FRAMES)
     }
 
+    /// The capsules from the pose network's output on this frame's side view, run for
+    /// another purpose (the person mask, [`super::person_masks`]): counts as this
+    /// frame's run.
+    pub fn adopt(
+        &mut self,
+        out: &PersonOutput,
+        side_camera: &Camera,
+        result: &SilhouetteResult,
+    ) -> [Option<SideOccluder>; MAX_SIDE_OCCLUDERS] {
+        if self.model.is_none() {
+            return self.occluders;
+        }
+        self.since = Some(0);
+        self.occluders = capsules(out, side_camera, result);
+        self.occluders
+    }
+
     /// The capsules for this frame: the network's on the side frame when due, else the
     /// last ones. Errors of the network leave the last capsules and are returned as a
     /// message.
@@ -129,79 +146,88 @@ impl SideLimbs {
         model
             .infer(FrameRef::from_image(side_frame), roi, &mut self.out)
             .map_err(|e| format!("side view pose network: {e}"))?;
-        if self.out.presence.is_none_or(|p| p < MIN_PRESENCE) {
-            self.occluders = [None; MAX_SIDE_OCCLUDERS];
-            return Ok(self.occluders);
-        }
-        let arm_x = |elbow: LandmarkName, wrist: LandmarkName, sign: f64| -> f64 {
-            let xs: Vec<f64> = [elbow, wrist]
-                .iter()
-                .filter_map(|n| result.landmarks.get(*n).map(|p| p.station.x))
-                .collect();
-            if xs.is_empty() {
-                sign * DEFAULT_ARM_X_M
-            } else {
-                xs.iter().sum::<f64>() / xs.len() as f64
-            }
-        };
-        let arms = [
-            (
-                [
-                    kp::LEFT_SHOULDER,
-                    kp::LEFT_ELBOW,
-                    kp::LEFT_WRIST,
-                    LEFT_INDEX,
-                ],
-                arm_x(LandmarkName::ElbowLeft, LandmarkName::WristLeft, 1.0),
-            ),
-            (
-                [
-                    kp::RIGHT_SHOULDER,
-                    kp::RIGHT_ELBOW,
-                    kp::RIGHT_WRIST,
-                    RIGHT_INDEX,
-                ],
-                arm_x(LandmarkName::ElbowRight, LandmarkName::WristRight, -1.0),
-            ),
-        ];
-        let mut occ = [None; MAX_SIDE_OCCLUDERS];
-        for (a, (ids, x)) in arms.iter().enumerate() {
-            let yz: Vec<Option<DVec2>> = ids
-                .iter()
-                .map(|&i| {
-                    let k = self.out.keypoints.get(i)?;
-                    on_plane_x(side_camera, DVec2::new(k.x as f64, k.y as f64), *x)
-                })
-                .collect();
-            let radii = [UPPER_ARM_RADIUS_M, FOREARM_RADIUS_M, HAND_RADIUS_M];
-            for (s, r) in radii.iter().enumerate() {
-                if let (Some(p), Some(q)) = (yz[s], yz[s + 1]) {
-                    // BlazePose's hand point sits on the knuckles: the fingers reach on.
-                    let q = if s == 2 {
-                        q + (q - p) * FINGERS_BEYOND_KNUCKLES
-                    } else {
-                        q
-                    };
-                    occ[3 * a + s] = Some(SideOccluder {
-                        a: p,
-                        b: q,
-                        radius: *r,
-                        x: *x,
-                        eye: side_camera.center_in_station(),
-                    });
-                }
-            }
-        }
-        self.occluders = occ;
-        if crate::fit::debug_enabled() {
-            eprintln!("side limb capsules (y, z) m: {:?}", self.occluders);
-            let px: Vec<(usize, f32, f32)> = (11..23)
-                .filter_map(|i| self.out.keypoints.get(i).map(|k| (i, k.x, k.y)))
-                .collect();
-            eprintln!("side arm keypoints px: {px:?}; crop around {lo} .. {hi}");
-        }
+        self.occluders = capsules(&self.out, side_camera, result);
         Ok(self.occluders)
     }
+}
+
+/// The arms' capsules from a pose network's side-view output (none when it found no
+/// person); the arm's x from the front view's landmarks.
+fn capsules(
+    out: &PersonOutput,
+    side_camera: &Camera,
+    result: &SilhouetteResult,
+) -> [Option<SideOccluder>; MAX_SIDE_OCCLUDERS] {
+    if out.presence.is_none_or(|p| p < MIN_PRESENCE) {
+        return [None; MAX_SIDE_OCCLUDERS];
+    }
+    let arm_x = |elbow: LandmarkName, wrist: LandmarkName, sign: f64| -> f64 {
+        let xs: Vec<f64> = [elbow, wrist]
+            .iter()
+            .filter_map(|n| result.landmarks.get(*n).map(|p| p.station.x))
+            .collect();
+        if xs.is_empty() {
+            sign * DEFAULT_ARM_X_M
+        } else {
+            xs.iter().sum::<f64>() / xs.len() as f64
+        }
+    };
+    let arms = [
+        (
+            [
+                kp::LEFT_SHOULDER,
+                kp::LEFT_ELBOW,
+                kp::LEFT_WRIST,
+                LEFT_INDEX,
+            ],
+            arm_x(LandmarkName::ElbowLeft, LandmarkName::WristLeft, 1.0),
+        ),
+        (
+            [
+                kp::RIGHT_SHOULDER,
+                kp::RIGHT_ELBOW,
+                kp::RIGHT_WRIST,
+                RIGHT_INDEX,
+            ],
+            arm_x(LandmarkName::ElbowRight, LandmarkName::WristRight, -1.0),
+        ),
+    ];
+    let mut occ = [None; MAX_SIDE_OCCLUDERS];
+    for (a, (ids, x)) in arms.iter().enumerate() {
+        let yz: Vec<Option<DVec2>> = ids
+            .iter()
+            .map(|&i| {
+                let k = out.keypoints.get(i)?;
+                on_plane_x(side_camera, DVec2::new(k.x as f64, k.y as f64), *x)
+            })
+            .collect();
+        let radii = [UPPER_ARM_RADIUS_M, FOREARM_RADIUS_M, HAND_RADIUS_M];
+        for (s, r) in radii.iter().enumerate() {
+            if let (Some(p), Some(q)) = (yz[s], yz[s + 1]) {
+                // BlazePose's hand point sits on the knuckles: the fingers reach on.
+                let q = if s == 2 {
+                    q + (q - p) * FINGERS_BEYOND_KNUCKLES
+                } else {
+                    q
+                };
+                occ[3 * a + s] = Some(SideOccluder {
+                    a: p,
+                    b: q,
+                    radius: *r,
+                    x: *x,
+                    eye: side_camera.center_in_station(),
+                });
+            }
+        }
+    }
+    if crate::fit::debug_enabled() {
+        eprintln!("side limb capsules (y, z) m: {:?}", occ);
+        let px: Vec<(usize, f32, f32)> = (11..23)
+            .filter_map(|i| out.keypoints.get(i).map(|k| (i, k.x, k.y)))
+            .collect();
+        eprintln!("side arm keypoints px: {px:?}");
+    }
+    occ
 }
 
 /// BlazePose's index-finger keypoints (the hand's far end).
