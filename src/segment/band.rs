@@ -113,7 +113,11 @@ impl BackgroundModel {
                             || self.is_foreground(i, p)
                             || (bridged && self.is_changed(i, p))
                             || (fused_ratio2.is_finite()
-                                && self.ratio2(i, p) >= fused_ratio2
+                                && (self.ratio2(i, p) >= fused_ratio2
+                                    || (super::fusion::POOL
+                                        && label == super::fusion::FUSED
+                                        && !shadow_stays
+                                        && self.pooled_reaches_px(raw, x, y, fused_ratio2)))
                                 && !(shadow_stays && self.is_darkened(i, p)))
                         {
                             BAND_FG
