@@ -57,9 +57,12 @@
 //! the triangles near its level, and [`Measurer::measure_into`] allocates nothing once
 //! warm. Torso questions (crotch scan, torso grid, band refinements) cut only the loops
 //! across the plane x = axis ([`slicer::SectionScratch::cut_across_x`]: the same loops,
-//! arms and hands skipped); the crotch scan skips, without slicing, the grid heights
+//! arms and hands skipped, and started only from the triangles spanning that plane, which
+//! the index lists per height bucket once the axis is known); the crotch scan skips,
+//! without slicing, the grid heights
 //! below the lowest triangle across that plane; the level scans only test loop extents
-//! and hulls are built where a rule needs them. The free [`measure`] and [`girth_at`]
+//! and hulls are built where a rule needs them, their points sorted by merging the
+//! monotone runs a loop's points come in. The free [`measure`] and [`girth_at`]
 //! use one such `Measurer` per thread.
 
 pub mod cli;
@@ -797,6 +800,7 @@ impl Measurer {
         self.load(mesh)?;
         let stature = self.stature();
         let axis_x = self.body_axis(mesh)?;
+        self.index.index_axis(axis_x);
         let crotch = self.find_crotch(mesh, axis_x)?;
         let armpit = self.find_armpit(mesh, axis_x)?;
         if armpit <= crotch {

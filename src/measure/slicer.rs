@@ -54,6 +54,12 @@ pub struct LevelIndex {
     /// Triangles around each vertex (compressed rows), to find edge neighbours.
     vertex_offsets: Vec<u32>,
     vertex_triangles: Vec<u32>,
+    /// The entries whose x range spans `axis_x` (within [`RANGE_SLACK_M`]), bucket by
+    /// bucket in the same order (compressed rows): a cut keeping only the loops across
+    /// that plane starts only from them, so it need not read the others.
+    axis_x: Option<f64>,
+    axis_offsets: Vec<u32>,
+    axis_entries: Vec<Entry>,
 }
 
 /// A triangle as listed in a bucket of a [`LevelIndex`].
@@ -185,6 +191,48 @@ impl LevelIndex {
         }
         self.spans = spans;
         self.counts = counts;
+        self.axis_x = None;
+    }
+
+    /// Lists, per bucket, the entries spanning the plane x = `axis_x` (see
+    /// [`LevelIndex::entries_across_x`]); kept until the next rebuild.
+    pub fn index_axis(&mut self, axis_x: f64) {
+        self.axis_offsets.clear();
+        self.axis_entries.clear();
+        self.axis_offsets.push(0);
+        for b in 0..self.n_buckets {
+            let (lo, hi) = (self.offsets[b] as usize, self.offsets[b + 1] as usize);
+            self.axis_entries
+                .extend(self.entries[lo..hi].iter().filter(|e| spans_x(e, axis_x)));
+            self.axis_offsets.push(self.axis_entries.len() as u32);
+        }
+        self.axis_x = Some(axis_x);
+    }
+
+    /// The candidate entries at height `y` that span the plane x = `axis_x`, in bucket
+    /// order: from the axis list when it was built for this very `axis_x`, else filtered
+    /// from the bucket.
+    fn entries_across_x(&self, y: f64, axis_x: f64) -> impl Iterator<Item = &Entry> {
+        let indexed = self.axis_x.is_some_and(|a| a.to_bits() == axis_x.to_bits())
+            && self.axis_offsets.len() == self.n_buckets + 1;
+        let (listed, all): (&[Entry], &[Entry]) = if indexed {
+            let range = self.bucket_range(y);
+            if range.is_empty() {
+                (&[], &[])
+            } else {
+                let b = self.bucket(y);
+                let (lo, hi) = (
+                    self.axis_offsets[b] as usize,
+                    self.axis_offsets[b + 1] as usize,
+                );
+                (&self.axis_entries[lo..hi], &[])
+            }
+        } else {
+            (&[], self.candidate_entries(y))
+        };
+        listed
+            .iter()
+            .chain(all.iter().filter(move |e| spans_x(e, axis_x)))
     }
 
     /// Edge neighbours through vertex -> triangle lists (linear time, no sorting).
@@ -278,6 +326,13 @@ impl LevelIndex {
         let b = self.bucket(y);
         self.offsets[b] as usize..self.offsets[b + 1] as usize
     }
+}
+
+/// Whether an entry's x range spans the plane x = `axis_x` (within [`RANGE_SLACK_M`]).
+#[inline]
+fn spans_x(e: &Entry, axis_x: f64) -> bool {
+    let r = e.x_range;
+    f64::from(r[0]) <= axis_x + RANGE_SLACK_M && f64::from(r[1]) >= axis_x - RANGE_SLACK_M
 }
 
 fn tri_y_range(mesh: &TriMesh, t: &[u32; 3]) -> (f64, f64) {
@@ -446,17 +501,49 @@ impl SectionScratch {
         let mut stack = std::mem::take(&mut self.stack);
         let mut starts = std::mem::take(&mut self.tree_starts);
         starts.clear();
-        for entry in index.candidate_entries(y) {
+        match across_x {
+            Some(axis_x) => self.grow_from(
+                mesh,
+                index,
+                y,
+                index.entries_across_x(y, axis_x),
+                &mut stack,
+                &mut starts,
+            ),
+            None => self.grow_from(
+                mesh,
+                index,
+                y,
+                index.candidate_entries(y).iter(),
+                &mut stack,
+                &mut starts,
+            ),
+        }
+        self.stack = stack;
+        // Each growth is one loop: its segments are contiguous, so the loops need no
+        // union-find (the same loops, in the same order of their first candidate, as
+        // `split_into_loops` gives over the same segments).
+        let grown = self.label_grown(&starts);
+        self.tree_starts = starts;
+        if !grown {
+            self.split_into_loops();
+        }
+    }
+
+    /// Grows a loop from each of `entries` that crosses height `y` and is not yet in a
+    /// loop, across crossed edges; `starts` gets each growth's first segment.
+    fn grow_from<'a>(
+        &mut self,
+        mesh: &TriMesh,
+        index: &LevelIndex,
+        y: f64,
+        entries: impl Iterator<Item = &'a Entry>,
+        stack: &mut Vec<u32>,
+        starts: &mut Vec<u32>,
+    ) {
+        for entry in entries {
             if !entry.may_cross(y) || self.visited(entry.triangle) {
                 continue;
-            }
-            if let Some(axis_x) = across_x {
-                let r = entry.x_range;
-                if f64::from(r[0]) > axis_x + RANGE_SLACK_M
-                    || f64::from(r[1]) < axis_x - RANGE_SLACK_M
-                {
-                    continue;
-                }
             }
             if !self.add_segment(mesh, index, entry.triangle, y) {
                 continue;
@@ -476,15 +563,6 @@ impl SectionScratch {
                     }
                 }
             }
-        }
-        self.stack = stack;
-        // Each growth is one loop: its segments are contiguous, so the loops need no
-        // union-find (the same loops, in the same order of their first candidate, as
-        // `split_into_loops` gives over the same segments).
-        let grown = self.label_grown(&starts);
-        self.tree_starts = starts;
-        if !grown {
-            self.split_into_loops();
         }
     }
 
@@ -648,10 +726,94 @@ impl SectionScratch {
     }
 }
 
+/// Lexicographic order of points: by x, then by z (total order on the floats).
+#[inline(always)]
+fn lex_less(a: &DVec2, b: &DVec2) -> bool {
+    a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)).is_lt()
+}
+
+/// Most monotone runs [`sort_lexicographic`] merges; more fall back to a general sort.
+const MAX_RUNS: usize = 16;
+
+/// Sorts `points` by x, then z, using `scratch` as merge buffer. A loop's points come in
+/// nearly the order of the loop (the cut grows it segment by segment), and a loop's x
+/// goes up on one side and down on the other: a few monotone runs, merged in linear
+/// time. Points equal in both coordinates are the same point, so the result is the one
+/// any sort gives.
+fn sort_lexicographic(points: &mut [DVec2], scratch: &mut Vec<DVec2>) {
+    let n = points.len();
+    let mut runs = [0usize; MAX_RUNS + 1];
+    let mut count = 0;
+    let mut i = 0;
+    while i < n {
+        if count == MAX_RUNS {
+            points.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+            return;
+        }
+        runs[count] = i;
+        count += 1;
+        let mut j = i + 1;
+        if j < n && lex_less(&points[j], &points[j - 1]) {
+            while j < n && lex_less(&points[j], &points[j - 1]) {
+                j += 1;
+            }
+            points[i..j].reverse();
+        } else {
+            while j < n && !lex_less(&points[j], &points[j - 1]) {
+                j += 1;
+            }
+        }
+        i = j;
+    }
+    runs[count] = n;
+    // Bottom-up: merge neighbouring runs until one is left.
+    while count > 1 {
+        let mut merged = 0;
+        let mut k = 0;
+        while k < count {
+            let (lo, mid) = (runs[k], runs[k + 1]);
+            if k + 1 < count {
+                let hi = runs[k + 2];
+                merge_runs(&mut points[lo..hi], mid - lo, scratch);
+            }
+            runs[merged] = lo;
+            merged += 1;
+            k += 2;
+        }
+        runs[merged] = n;
+        count = merged;
+    }
+}
+
+/// Merges the sorted halves `v[..mid]` and `v[mid..]` in place through `scratch`.
+fn merge_runs(v: &mut [DVec2], mid: usize, scratch: &mut Vec<DVec2>) {
+    if mid == 0 || mid == v.len() || !lex_less(&v[mid], &v[mid - 1]) {
+        return; // already in order
+    }
+    scratch.clear();
+    scratch.extend_from_slice(&v[..mid]);
+    let (mut a, mut b, mut out) = (0, mid, 0);
+    while a < scratch.len() && b < v.len() {
+        if lex_less(&v[b], &scratch[a]) {
+            v[out] = v[b];
+            b += 1;
+        } else {
+            v[out] = scratch[a];
+            a += 1;
+        }
+        out += 1;
+    }
+    while a < scratch.len() {
+        v[out] = scratch[a];
+        a += 1;
+        out += 1;
+    }
+}
+
 /// Andrew's monotone chain hull of `points` (sorted in place) into `hull`
 /// (counter-clockwise in (x, z), no collinear points), then its perimeter and area.
 pub fn hull_stats(points: &mut [DVec2], hull: &mut Vec<DVec2>) -> Option<HullStats> {
-    points.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+    sort_lexicographic(points, hull);
     hull.clear();
     let cross = |o: DVec2, a: DVec2, b: DVec2| (a - o).perp_dot(b - o);
     for &q in points.iter() {
@@ -823,6 +985,49 @@ mod tests {
         );
         let whole = s.whole_hull().expect("whole").perimeter_m;
         assert!((whole - (circle + 2.0 * 0.5)).abs() < 1e-9, "{whole}");
+    }
+
+    #[test]
+    fn the_run_merging_sort_equals_a_general_sort() {
+        let mut seed = 7u64;
+        let mut rnd = move || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((seed >> 33) as f64 / (1u64 << 31) as f64) - 0.5
+        };
+        let mut scratch = Vec::new();
+        for case in 0..200 {
+            let n = case % 97 + 1;
+            let mut pts: Vec<DVec2> = match case % 4 {
+                // A loop's points in loop order, from a random start.
+                0 => (0..n)
+                    .map(|k| {
+                        let a = (k as f64 + 13.0 * case as f64) / n as f64 * std::f64::consts::TAU;
+                        DVec2::new(0.2 * a.cos() + 0.01 * rnd(), 0.1 * a.sin())
+                    })
+                    .collect(),
+                // Random points with repeated coordinates and exact duplicates.
+                1 => (0..n)
+                    .map(|_| DVec2::new((rnd() * 4.0).round(), (rnd() * 4.0).round()))
+                    .collect(),
+                // Many short runs (the general sort).
+                2 => (0..n).map(|_| DVec2::new(rnd(), rnd())).collect(),
+                // Signed zeros and a descending run.
+                _ => (0..n)
+                    .map(|k| DVec2::new(if k % 2 == 0 { 0.0 } else { -0.0 }, -(k as f64)))
+                    .collect(),
+            };
+            let mut want = pts.clone();
+            want.sort_unstable_by(|a, b| a.x.total_cmp(&b.x).then(a.y.total_cmp(&b.y)));
+            sort_lexicographic(&mut pts, &mut scratch);
+            let bits = |v: &[DVec2]| {
+                v.iter()
+                    .map(|p| (p.x.to_bits(), p.y.to_bits()))
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&pts), bits(&want), "case {case}");
+        }
     }
 
     #[test]
