@@ -364,3 +364,38 @@ fn synth_turns_the_subject_on_the_mark() {
     assert!(!refused.status.success());
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--turn-deg 90"));
 }
+
+/// `synth-set --stance varied --first-seed 62106` drew a stance that pressed the thighs
+/// together: the posed body had no crotch and the whole set stopped. The stance is drawn
+/// again from the seed and the member is rendered, the redraw said on stderr.
+#[test]
+fn a_varied_stance_whose_thighs_merge_is_drawn_again() {
+    if !body_available() {
+        return;
+    }
+    let out = tmp("redraw");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
+        .args(["synth-set", "--out"])
+        .arg(&out)
+        .args([
+            "--count",
+            "1",
+            "--first-seed",
+            "62106",
+            "--format",
+            "png",
+            "--population",
+            "ansur",
+            "--stance",
+            "varied",
+        ])
+        .output()
+        .expect("fitstation runs");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "synth-set failed: {stderr}");
+    assert!(stderr.contains("stance drawn again (1)"), "{stderr}");
+    let member = out.join("subject_00");
+    let truth = load_truth(&truth_dir(&member)).expect("the member's truth");
+    assert!(truth.measurements_mm.get("chest_girth").is_some_and(|&c| c > 500.0));
+    let _ = std::fs::remove_dir_all(&out);
+}

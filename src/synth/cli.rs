@@ -3,7 +3,7 @@
 
 use super::{
     ansur, ansur_body, render_recording, scene, stance, subject, CameraOptions, SynthConfig,
-    SynthSummary,
+    SynthError, SynthSummary,
 };
 use crate::recording::FrameFormat;
 use std::path::PathBuf;
@@ -291,6 +291,14 @@ pub fn ansur_member(table: &ansur::AnsurTable, first_seed: u64, i: usize) -> Syn
     cfg
 }
 
+/// Stances drawn again for a varied-stance member whose posed body cannot be analysed.
+pub const MAX_STANCE_REDRAWS: u32 = 4;
+
+/// The seed of the `k`-th stance drawn again for a member of seed `seed`.
+pub fn redrawn_stance_seed(seed: u64, k: u32) -> u64 {
+    seed ^ (u64::from(k) << 40)
+}
+
 /// Runs `fitstation synth-set`.
 pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
     let table = match args.population {
@@ -324,7 +332,26 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
             at: args.warp_at,
         };
         let out = args.out.join(format!("subject_{i:02}"));
-        let s = render_recording(&cfg, &out)?;
+        let mut redraws = 0;
+        let s = loop {
+            match render_recording(&cfg, &out) {
+                // A varied stance can press the thighs together so that no crotch is
+                // left: the stance is drawn again from the seed (deterministically).
+                Err(SynthError::Unanalysable(e))
+                    if args.stance == StanceKind::Varied && redraws < MAX_STANCE_REDRAWS =>
+                {
+                    redraws += 1;
+                    eprintln!(
+                        "subject_{i:02} (seed {}): {e}; stance drawn again ({redraws})",
+                        cfg.seed
+                    );
+                    cfg.subject.stance = Some(stance::Stance::sample(redrawn_stance_seed(
+                        cfg.seed, redraws,
+                    )));
+                }
+                r => break r?,
+            }
+        };
         print_summary(&s);
     }
     Ok(())

@@ -117,6 +117,10 @@ pub enum SynthError {
     Output(#[from] crate::io::atomic::AtomicError),
     #[error("{0}")]
     Invalid(String),
+    /// The posed body has no skeleton to be found (a stance whose thighs merge below the
+    /// crotch): the draw is unusable, not the configuration.
+    #[error("the body cannot be analysed: {0}")]
+    Unanalysable(String),
 }
 
 fn io_err(path: &Path) -> impl Fn(std::io::Error) -> SynthError + '_ {

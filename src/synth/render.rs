@@ -171,8 +171,8 @@ fn stage(cfg: &SynthConfig, tdir: &Path) -> Result<Staged, SynthError> {
     let placement = Placement::sample(&mut rng);
     let sway = Sway::sample(&mut rng);
     // The body's skeleton and landmarks (method.md section 1) dress it and are truth.
-    let info = crate::body::prepare(&canonical)
-        .map_err(|e| SynthError::Invalid(format!("the body cannot be analysed: {e}")))?;
+    let info =
+        crate::body::prepare(&canonical).map_err(|e| SynthError::Unanalysable(e.to_string()))?;
     let mut canonical_landmarks = subject::template_landmarks(&info);
     // The top of the head is the highest vertex (the skeleton's head-top joint is a
     // proportion, not a surface point).
