@@ -396,6 +396,9 @@ fn a_varied_stance_whose_thighs_merge_is_drawn_again() {
     assert!(stderr.contains("stance drawn again (1)"), "{stderr}");
     let member = out.join("subject_00");
     let truth = load_truth(&truth_dir(&member)).expect("the member's truth");
-    assert!(truth.measurements_mm.get("chest_girth").is_some_and(|&c| c > 500.0));
+    assert!(truth
+        .measurements_mm
+        .get("chest_girth")
+        .is_some_and(|&c| c > 500.0));
     let _ = std::fs::remove_dir_all(&out);
 }

@@ -68,8 +68,10 @@ impl BackgroundModel {
     /// shirt of the wall's colour leaves the head above it, or the legs below it, apart
     /// from the rest): components of at least `min_area / PIECE_AREA_DIV` cells that the
     /// learned person prior covers ([`PIECE_PRIOR_SHARE`] of their cells at p >= 0.5),
-    /// within the body's columns and at most [`PIECE_GAP_DIV`]-th of its height above or
-    /// below it. Without a prior there are none (a piece could be anything).
+    /// within the body's columns (or stacked on it and spanning its columns: the trunk
+    /// with its arms out over legs the volume rule chose as the body) and at most
+    /// [`PIECE_GAP_DIV`]-th of its height above or below it. Without a prior there are
+    /// none (a piece could be anything).
     fn find_pieces(&mut self, body: usize, min_area: u64) {
         let Some(prior) = self.prior.as_ref() else {
             return;
@@ -83,6 +85,12 @@ impl BackgroundModel {
                 continue;
             }
             let beside = k.min_x >= b.min_x && k.max_x <= b.max_x;
+            // A piece stacked on the body that is wider than it (the trunk with its arms
+            // out, above legs the volume rule chose as the body), or under it.
+            let stacked = (k.min_y + gap <= b.min_y || k.max_y >= b.max_y + gap)
+                && b.min_x >= k.min_x
+                && b.max_x <= k.max_x;
+            let beside = beside || stacked;
             let near = k.max_y + gap >= b.min_y && k.min_y <= b.max_y + gap;
             if c == body || !beside || !near {
                 continue;
