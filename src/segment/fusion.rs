@@ -208,17 +208,46 @@ fn min_ratio2_of(p: f32, o: &FusionOptions) -> f32 {
     }
 }
 
-/// The pooled test: the summed difference `sum` of `n` samples reaches the squared
-/// distance ratio `need` against their summed squared radii (`|sum d|^2 >= need sum
-/// tau^2`), and the tested sample's own difference `own` carries at least a quarter of
-/// the pooled mean along it. Without the second condition the backdrop just outside a
-/// garment of near-backdrop colour would borrow the garment's offset and the outline
-/// would grow by the pool's reach.
-#[inline]
-fn pooled_agrees(sum: [f32; 3], tau2: f32, n: f32, own: [f32; 3], need: f32) -> bool {
-    let s2 = sum[0] * sum[0] + sum[1] * sum[1] + sum[2] * sum[2];
-    let along = own[0] * sum[0] + own[1] * sum[1] + own[2] * sum[2];
-    s2 >= need * tau2 && n > 0.0 && along * n >= 0.25 * s2
+/// The colour differences of a pool (see [`BackgroundModel::pooled_reaches`]).
+#[derive(Default)]
+struct Pool {
+    sum: [f32; 3],
+    tau2: f32,
+    n: f32,
+    own: [f32; 3],
+}
+
+impl Pool {
+    /// Takes in a sample's difference `d` and squared radius `t2`: always the tested
+    /// sample (`centre`), another only when it is not changed on its own (the person's
+    /// rim, a shadow).
+    #[inline(always)]
+    fn take(&mut self, d: [f32; 3], t2: f32, centre: bool) {
+        if centre {
+            self.own = d;
+        } else if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > t2 {
+            return;
+        }
+        self.sum[0] += d[0];
+        self.sum[1] += d[1];
+        self.sum[2] += d[2];
+        self.tau2 += t2;
+        self.n += 1.0;
+    }
+
+    /// The pooled test: the summed difference reaches the squared distance ratio `need`
+    /// against the summed squared radii (`|sum d|^2 >= need sum tau^2`), and the tested
+    /// sample's own difference carries at least a quarter of the pooled mean along it.
+    /// Without the second condition the backdrop just outside a garment of near-backdrop
+    /// colour would borrow the garment's offset and the outline would grow by the pool's
+    /// reach.
+    #[inline]
+    fn agrees(&self, need: f32) -> bool {
+        let s = self.sum;
+        let s2 = s[0] * s[0] + s[1] * s[1] + s[2] * s[2];
+        let along = self.own[0] * s[0] + self.own[1] * s[1] + self.own[2] * s[2];
+        s2 >= need * self.tau2 && self.n > 0.0 && along * self.n >= 0.25 * s2
+    }
 }
 
 /// Makes coarse cell `k` (box cell `j`) person by the fusion, keeping its former label.
@@ -595,7 +624,7 @@ impl BackgroundModel {
         let ch = coarse.len() / cw.max(1);
         let g = self.gain;
         let m = &self.coarse_model;
-        let (mut sum, mut tau2, mut n, mut own) = ([0.0f32; 3], 0.0f32, 0.0f32, [0.0f32; 3]);
+        let mut pool = Pool::default();
         for y in cy.saturating_sub(POOL_CELLS)..(cy + POOL_CELLS + 1).min(ch) {
             for x in cx.saturating_sub(POOL_CELLS)..(cx + POOL_CELLS + 1).min(cw) {
                 let k = y * cw + x;
@@ -608,45 +637,25 @@ impl BackgroundModel {
                     raw[3 * i + 1] as f32 - g * m.eg[k] as f32,
                     raw[3 * i + 2] as f32 - g * m.eb[k] as f32,
                 ];
-                let t2 = (m.tau2[k] as f32).max(1.0);
-                if (x, y) == (cx, cy) {
-                    own = d;
-                } else if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > t2 {
-                    continue; // changed on its own: the person's rim or a shadow
-                }
-                sum[0] += d[0];
-                sum[1] += d[1];
-                sum[2] += d[2];
-                tau2 += t2;
-                n += 1.0;
+                pool.take(d, (m.tau2[k] as f32).max(1.0), (x, y) == (cx, cy));
             }
         }
-        pooled_agrees(sum, tau2, n, own, need)
+        pool.agrees(need)
     }
 
     /// Whether pixel `(x, y)`'s difference pooled with its 8 neighbours that are not
     /// changed on their own reaches `need`, as [`Self::pooled_reaches`] for a cell.
     pub(super) fn pooled_reaches_px(&self, raw: &[u8], x: usize, y: usize, need: f32) -> bool {
         let (w, h) = (self.width as usize, self.height as usize);
-        let (mut sum, mut tau2, mut n, mut own) = ([0.0f32; 3], 0.0f32, 0.0f32, [0.0f32; 3]);
+        let mut pool = Pool::default();
         for ny in y.saturating_sub(1)..(y + 2).min(h) {
             for nx in x.saturating_sub(1)..(x + 2).min(w) {
                 let i = ny * w + nx;
                 let (d, _, t2) = self.difference(i, [raw[3 * i], raw[3 * i + 1], raw[3 * i + 2]]);
-                let t2 = t2.max(1.0);
-                if (nx, ny) == (x, y) {
-                    own = d;
-                } else if d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > t2 {
-                    continue;
-                }
-                sum[0] += d[0];
-                sum[1] += d[1];
-                sum[2] += d[2];
-                tau2 += t2;
-                n += 1.0;
+                pool.take(d, t2.max(1.0), (nx, ny) == (x, y));
             }
         }
-        pooled_agrees(sum, tau2, n, own, need)
+        pool.agrees(need)
     }
 
     /// The least `r^2` making a pixel of coarse cell `(cx, cy)` person by the fusion
