@@ -17,6 +17,7 @@
 //!
 //! Units: metres, station frame (+Y up, +Z toward the front camera, +X the subject's left).
 
+pub mod armpit;
 pub mod correspond;
 pub mod deformer;
 mod first;
@@ -188,6 +189,9 @@ pub struct FitStats {
     /// The turn on the mark the candidate was given at the subject's first fit
     /// ([`turn`]), degrees; None when the toes showed none.
     pub turn_deg: Option<f64>,
+    /// Vertices of pockets between arm and trunk brought down after the solve
+    /// ([`armpit`]).
+    pub armpit_peaks: usize,
 }
 
 /// Per-subject state kept between frames.
@@ -281,6 +285,9 @@ pub struct Fitter {
     /// The library bodies' mean depths relative to their toes (a fit without the side
     /// view places the trunk by them, [`one_view`]).
     depth_offsets: Option<one_view::DepthOffsets>,
+    /// Pockets the skinning leaves where the arms meet the trunk, taken out of every
+    /// avatar ([`armpit`]).
+    armpit_peaks: armpit::ArmpitPeaks,
 }
 
 impl Fitter {
@@ -290,6 +297,11 @@ impl Fitter {
         let rings = template.mesh.one_rings();
         let lm = pose::template_part_landmarks(template).map_err(FitError::Body)?;
         let template_labels = parts::label_parts(&template.mesh, &rings, &lm);
+        let armpit_peaks = armpit::ArmpitPeaks::new(
+            &template.mesh.positions,
+            rings,
+            [lm.left_armpit, lm.right_armpit],
+        );
         let mut library_params = Vec::with_capacity(opts.library_size);
         let mut library_descriptors = Vec::with_capacity(opts.library_size);
         let mut buf = Vec::new();
@@ -338,6 +350,7 @@ impl Fitter {
             fail_next_decode: false,
             raster: Vec::new(),
             depth_offsets,
+            armpit_peaks,
         })
     }
 
@@ -496,6 +509,7 @@ impl Fitter {
         let Some(s) = self.subject.as_mut() else {
             return Err(FitError::NoTorso);
         };
+        stats.armpit_peaks = self.armpit_peaks.flatten(&mut s.positions);
         // Residual after the solve.
         let mut sum = 0.0;
         let mut n = 0usize;
