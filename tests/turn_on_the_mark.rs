@@ -60,13 +60,10 @@ fn girths(rec: &Path) -> serde_json::Map<String, serde_json::Value> {
 /// After cb867af (the toes' scans walk in half-pixel steps, the turns read on the
 /// development sets no worse) another candidate is chosen: +4 degrees chest +2.4, waist
 /// -0.2, hip -6.0, thighs -11.6 / +4.3; -4 degrees chest -1.8, waist +2.7, hip -3.0,
-/// thighs -5.0 / -6.1. Measured 2026-11-28 after the legs' depth was no longer held to
-/// each leg's width scale (and the armpits' peaks taken out): +4 degrees chest -9.1,
-/// waist -3.3, hip -1.9, thighs -1.3 / -4.6; -4 degrees chest -9.3, waist +0.3, hip
-/// -4.0, thighs -3.0 / -1.4. Run with `cargo test --release --test turn_on_the_mark --
+/// thighs -5.0 / -6.1. Run with `cargo test --release --test turn_on_the_mark --
 /// --ignored`.
 #[test]
-#[ignore = "issue 19 item 4 not met yet: a turn of 4 degrees either way moves the chest by -9.1 / -9.3 mm"]
+#[ignore = "issue 19 item 4 not met yet: a +4 degree turn moves the left thigh by -11.6 mm, -4 the right thigh by -6.1"]
 fn a_small_turn_on_the_mark_moves_no_girth_more_than_a_few_millimetres() {
     let dir = tmp("girths");
     let square = girths(&render(&dir, 0.0));
