@@ -625,7 +625,10 @@ impl StationProcessor {
         side_seen: bool,
         stature_sd_mm: Option<f64>,
     ) -> Result<(), String> {
-        let m = crate::measure::measure(avatar).map_err(|e| e.to_string())?;
+        let mut m = crate::measure::measure(avatar).map_err(|e| e.to_string())?;
+        // The hip: the avatar's girths about its furthest-back level, each by its chance
+        // of being the person's (the side view places the back to a pixel).
+        m.hip_girth_mm = uncertainty::hip_girth_over_levels_mm(&m, self.side_pixel_m);
         let map = m.to_report_map();
         // The avatar's own trunk at the torso girths' levels, in one pass over its edges.
         let torso_levels = [m.levels.chest_m, m.levels.waist_m, m.levels.hip_m];

@@ -229,6 +229,40 @@ fn profile_girth_at(m: &Measurements, y: f64) -> Option<f64> {
     }
 }
 
+/// The hip girth the station reports (mm): its estimate of the spec's hip girth of the
+/// person, whose level is where the torso reaches furthest back. The side view shows the
+/// back to about a pixel (`resolution_m`, the side camera's pixel at the subject), and on
+/// a flat buttock the avatar's back lies within that of its furthest point over
+/// centimetres of height where the girth changes fast: the girth at the avatar's one
+/// furthest point is then a draw from that range (a development body's level fell 6 cm,
+/// to the thighs' tops, +112 mm). So each of the avatar's torso profile samples between
+/// the crotch and waist levels is weighted by its chance of being the person's furthest
+/// point, `exp(-(z - z_back) / resolution_m)` (the argmin of levels whose backs carry
+/// independent Gumbel errors of that scale), and the girth is the weighted mean. The
+/// spec's girth at the avatar's own level with no profile or no resolution.
+pub fn hip_girth_over_levels_mm(m: &Measurements, resolution_m: f64) -> f64 {
+    let l = &m.levels;
+    let band = || {
+        m.torso_profile
+            .iter()
+            .filter(|s| s.height_m >= l.crotch_m && s.height_m <= l.waist_m)
+            .filter(|s| s.back_z_m.is_finite() && s.girth_mm.is_finite())
+    };
+    let Some(back) = band().map(|s| s.back_z_m).min_by(f64::total_cmp) else {
+        return m.hip_girth_mm;
+    };
+    if !(resolution_m > 0.0) {
+        return m.hip_girth_mm;
+    }
+    let (mut sum_w, mut sum_wg) = (0.0, 0.0);
+    for s in band() {
+        let w = (-(s.back_z_m - back) / resolution_m).exp();
+        sum_w += w;
+        sum_wg += w * s.girth_mm;
+    }
+    sum_wg / sum_w
+}
+
 /// The standard deviation (mm) the hip's level adds to its girth. The hip is taken
 /// where the torso reaches furthest back (the spec's definition), and on a flat buttock
 /// the back lies within a pixel of its furthest point over several centimetres of
@@ -430,6 +464,56 @@ mod tests {
         let above = vec![(waist + 0.05, -0.3), (at(5), -0.21)];
         assert_eq!(hip_seen_level_sigma_mm(&m, &above, 0.003), 0.0);
         assert_eq!(hip_seen_level_sigma_mm(&m, &[], 0.003), 0.0);
+    }
+
+    /// The reported hip: the girth at a clear furthest-back level is that level's; on a
+    /// back flat within a fraction of a pixel, the girths of the whole flat stretch count
+    /// alike (the avatar's own furthest point there is a draw, not a measurement).
+    #[test]
+    fn a_flat_back_reports_the_girth_over_its_stretch_a_clear_one_its_own() {
+        let library = crate::body::ShapeLibrary::shared().expect("the bundled shape library");
+        let mut m = crate::measure::measure(&library.template().mesh).expect("measured");
+        let (crotch, waist) = (m.levels.crotch_m, m.levels.waist_m);
+        let at = |k: usize| crotch + (waist - crotch) * k as f64 / 10.0;
+        let profile = |back: &dyn Fn(usize) -> f64| -> Vec<crate::measure::GirthSample> {
+            (0..=10)
+                .map(|k| crate::measure::GirthSample {
+                    height_m: at(k),
+                    girth_mm: 1100.0 - 10.0 * k as f64,
+                    back_z_m: back(k),
+                })
+                .collect()
+        };
+        // A clear buttock at k = 5, 20 mm behind the rest (five pixels of 4 mm).
+        m.torso_profile = profile(&|k| if k == 5 { -0.22 } else { -0.2 });
+        m.hip_girth_mm = 1050.0;
+        let clear = hip_girth_over_levels_mm(&m, 0.004);
+        assert!((clear - 1050.0).abs() < 0.5, "{clear}");
+        // Flat within 0.1 mm from k = 1 to k = 9, the avatar's furthest at k = 1 (the
+        // thighs' tops, 1090): the stretch's girths alike, about their mean 1050.
+        m.torso_profile = profile(&|k| match k {
+            1 => -0.2101,
+            2..=9 => -0.2100,
+            _ => -0.19,
+        });
+        m.hip_girth_mm = 1090.0;
+        let flat = hip_girth_over_levels_mm(&m, 0.004);
+        assert!((flat - 1050.0).abs() < 1.0, "{flat}");
+        // A finer camera tells 0.1 mm apart better, and leans further to k = 1, though
+        // not to it alone.
+        let fine = hip_girth_over_levels_mm(&m, 0.00005);
+        assert!(fine > flat + 10.0 && fine < 1090.0, "{fine}");
+        // Samples above the waist do not count; without a resolution or a profile the
+        // girth at the avatar's level stays.
+        m.torso_profile.push(crate::measure::GirthSample {
+            height_m: waist + 0.05,
+            girth_mm: 500.0,
+            back_z_m: -0.3,
+        });
+        assert!((hip_girth_over_levels_mm(&m, 0.004) - flat).abs() < 1e-9);
+        assert_eq!(hip_girth_over_levels_mm(&m, 0.0), 1090.0);
+        m.torso_profile.clear();
+        assert_eq!(hip_girth_over_levels_mm(&m, 0.004), 1090.0);
     }
 
     #[test]
