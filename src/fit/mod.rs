@@ -43,6 +43,15 @@ use std::sync::Arc;
 const DECODE_ITERATIONS_PER_SOLVE: usize = 8;
 /// Whether the environment asks for the fit's diagnostic prints (`FITSTATION_DEBUG`), read
 /// once per process: the per-frame paths must not look up the environment.
+/// The cameras' centres (front, side) the section maps read each edge at its rim's depth
+/// from ([`sections::SectionScratch::eyes`]); None without [`FitOptions::rim_depth`].
+fn rim_depth_eyes(
+    on: bool,
+    views: [(&crate::camera::Camera, correspond::MaskRef<'_>); 2],
+) -> Option<[glam::DVec3; 2]> {
+    on.then(|| [views[0].0.center_in_station(), views[1].0.center_in_station()])
+}
+
 pub(crate) fn debug_enabled() -> bool {
     static DEBUG: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
     *DEBUG.get_or_init(|| std::env::var_os("FITSTATION_DEBUG").is_some())
@@ -64,6 +73,8 @@ const PLACEMENT_MAX_LEAN: f64 = 0.02;
 pub const WAIST_PRIOR_ENV: &str = "FITSTATION_WAIST_PRIOR";
 /// Environment variable that turns [`FitOptions::turn_from_toes`] off (value `off`).
 pub const TURN_ENV: &str = "FITSTATION_TURN";
+/// Environment variable that turns [`FitOptions::rim_depth`] off (value `off`).
+pub const RIM_DEPTH_ENV: &str = "FITSTATION_RIM_DEPTH";
 
 /// Options of the fit.
 #[derive(Debug, Clone)]
@@ -99,6 +110,10 @@ pub struct FitOptions {
     /// ([`turn`]) before its controls are chosen. On unless the environment sets
     /// [`TURN_ENV`] to `off` (to compare: `FITSTATION_TURN=off fitstation eval ...`).
     pub turn_from_toes: bool,
+    /// Read each silhouette edge at the depth of its section's rim, along its viewing ray,
+    /// not at the control vertex's depth ([`sections`]). On unless the environment sets
+    /// [`RIM_DEPTH_ENV`] to `off` (to compare: `FITSTATION_RIM_DEPTH=off fitstation eval`).
+    pub rim_depth: bool,
 }
 
 impl Default for FitOptions {
@@ -116,6 +131,7 @@ impl Default for FitOptions {
             waist_prior: std::env::var(WAIST_PRIOR_ENV).as_deref() != Ok("off"),
             candidate_passes: 3,
             turn_from_toes: std::env::var(TURN_ENV).as_deref() != Ok("off"),
+            rim_depth: std::env::var(RIM_DEPTH_ENV).as_deref() != Ok("off"),
         }
     }
 }
@@ -625,6 +641,8 @@ impl Fitter {
                     // targets turned back with it, the mapped targets turned forward.
                     Some((t, about)) => {
                         let back = turn::Turning::new(about, -t.yaw);
+                        self.section_scratch.eyes = rim_depth_eyes(self.opts.rim_depth, views)
+                            .map(|e| e.map(|p| back.apply(p)));
                         self.targets_square.clear();
                         self.targets_square
                             .extend(self.targets.iter().map(|p| p.map(|p| back.apply(p))));
@@ -641,14 +659,17 @@ impl Fitter {
                             *p = forward.apply(*p);
                         }
                     }
-                    None => plan.targets(
+                    None => {
+                        self.section_scratch.eyes = rim_depth_eyes(self.opts.rim_depth, views);
+                        plan.targets(
                         &s.rest.positions,
                         &s.controls,
                         &self.targets,
                         &self.side_occluders,
                         &mut self.section_scratch,
                         &mut self.vertex_targets,
-                    ),
+                    )
+                    }
                 }
             }
             let dense_at = |v: u32| self.vertex_targets.get(v as usize).copied().flatten();
