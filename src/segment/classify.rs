@@ -121,7 +121,15 @@ impl BackgroundModel {
                 let (r, g, b) = (v & 0xff, (v >> 8) & 0xff, v >> 16);
                 // Integer differences and dot products (exact), f32 for the products.
                 let (er, eg, eb) = (er as i32, eg as i32, eb as i32);
-                let (dr, dg, db) = (r as i32 - er, g as i32 - eg, b as i32 - eb);
+                // A channel the model saw clipped says only "at least this bright": it is
+                // left out of the tests (unless all three are: a blown-out white).
+                let [wr, wg, wb] = unclipped_weights(er, eg, eb);
+                let (dr, dg, db) = (
+                    (r as i32 - er) * wr,
+                    (g as i32 - eg) * wg,
+                    (b as i32 - eb) * wb,
+                );
+                let (er, eg, eb) = (er * wr, eg * wg, eb * wb);
                 let dd = (dr * dr + dg * dg + db * db) as f32;
                 let de = (dr * er + dg * eg + db * eb) as f32;
                 let ee = (er * er + eg * eg + eb * eb) as f32;
@@ -176,6 +184,28 @@ impl BackgroundModel {
             &mut self.column_anchored,
         );
     }
+}
+
+/// A model channel at or above this was clipped by the camera when the backdrop was
+/// learned (8-bit).
+pub(super) const CLIPPED_MODEL: i32 = 254;
+
+/// Per channel 1, or 0 for a channel the model saw clipped ([`CLIPPED_MODEL`]) while
+/// another was not. A clipped channel's true brightness is unknown above the clip: a
+/// shadow falling on a saturated yellow floor mark (255, 237, 53) leaves its red channel
+/// at 242 while green falls to 200, which no shadow does to a colour, and the mark
+/// under a shopper's feet was taken for the person (and joined the feet, closing the gap
+/// between the legs). Its unclipped channels still tell a shadow from a colour; a white
+/// clipped in every channel keeps all three.
+#[inline(always)]
+pub(super) fn unclipped_weights(er: i32, eg: i32, eb: i32) -> [i32; 3] {
+    let c = [
+        (er >= CLIPPED_MODEL) as i32,
+        (eg >= CLIPPED_MODEL) as i32,
+        (eb >= CLIPPED_MODEL) as i32,
+    ];
+    let all = c[0] & c[1] & c[2];
+    c.map(|k| 1 - k + k * all)
 }
 
 /// Promotes WEAK cells that lie in a column between two foreground cells, with only

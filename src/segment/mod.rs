@@ -690,11 +690,19 @@ impl BackgroundModel {
     fn is_foreground(&self, i: usize, p: [u8; 3]) -> bool {
         let m = self.px[i];
         let [er, eg, eb] = m.color();
+        // A channel the model saw clipped is left out ([`classify::unclipped_weights`]).
+        let w = classify::unclipped_weights(
+            (er + 0.5) as i32,
+            (eg + 0.5) as i32,
+            (eb + 0.5) as i32,
+        )
+        .map(|k| k as f32);
+        let [er, eg, eb] = [er * w[0], eg * w[1], eb * w[2]];
         let ee = er * er + eg * eg + eb * eb;
         let tau2 = m.radius2();
-        let dr = p[0] as f32 - er;
-        let dg = p[1] as f32 - eg;
-        let db = p[2] as f32 - eb;
+        let dr = (p[0] as f32 - er) * w[0];
+        let dg = (p[1] as f32 - eg) * w[1];
+        let db = (p[2] as f32 - eb) * w[2];
         let dd = dr * dr + dg * dg + db * db;
         let de = dr * er + dg * eg + db * eb;
         let o = &self.opts;

@@ -417,3 +417,58 @@ fn empty_scene_gives_no_person() {
         Err(SegmentError::NotReady)
     ));
 }
+
+/// A floor mark the camera clips in one channel (saturated yellow, as the synthetic
+/// station's tape): a shadow over it keeps the clipped red near the top while green and
+/// blue fall, which no shadow does to an unclipped colour. It is not the person; a person
+/// standing on it still is.
+#[test]
+fn a_shadow_on_a_clipped_floor_mark_is_no_person() {
+    let (w, h) = (120, 100);
+    let mark = |x: u32, y: u32| (30..90).contains(&x) && (84..96).contains(&y);
+    let frame = |shadow: bool, person: bool, seed: u32| {
+        painted(w, h, seed, move |x, y, s| {
+            let n = (s % 5) as i32 - 2;
+            let mut c = [150 + n, 155 + n, 140 + n];
+            if mark(x, y) {
+                // Red clipped: the tape's true red lies above 255.
+                c = [255, 237 + n, 53 + n];
+                if shadow {
+                    c = [242 + n, 200 + n, 46 + n];
+                }
+            } else if shadow && y >= 80 {
+                c = c.map(|v| v * 85 / 100);
+            }
+            if person && (50..70).contains(&x) && (10..92).contains(&y) {
+                c = [60 + n, 90 + n, 200 + n];
+            }
+            c.map(|v| v.clamp(0, 255) as u8)
+        })
+    };
+    let mut m = BackgroundModel::new(w, h, SegmentOptions::default());
+    for k in 0..5 {
+        m.learn(&frame(false, false, k)).unwrap();
+    }
+    m.set_shadow_zone(&zone_from_row(w, h, 80)).unwrap();
+    let mut mask = Mask::new(1, 1);
+    let st = m.segment(&frame(true, false, 50), &mut mask).unwrap();
+    assert_eq!(st.person_px, 0, "the shadowed mark was taken for a person");
+    m.segment(&frame(true, true, 51), &mut mask).unwrap();
+    let mut truth = Mask::new(w, h);
+    for y in 10..92 {
+        for x in 50..70 {
+            truth.data[(y * w + x) as usize] = 255;
+        }
+    }
+    let iou = mask.iou(&truth);
+    assert!(iou > 0.95, "iou {iou}");
+}
+
+#[test]
+fn only_a_clipped_channel_beside_unclipped_ones_is_left_out() {
+    use super::classify::unclipped_weights;
+    assert_eq!(unclipped_weights(255, 237, 53), [0, 1, 1]);
+    assert_eq!(unclipped_weights(254, 254, 10), [0, 0, 1]);
+    assert_eq!(unclipped_weights(255, 255, 255), [1, 1, 1]);
+    assert_eq!(unclipped_weights(120, 130, 253), [1, 1, 1]);
+}
