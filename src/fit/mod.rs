@@ -49,7 +49,12 @@ fn rim_depth_eyes(
     on: bool,
     views: [(&crate::camera::Camera, correspond::MaskRef<'_>); 2],
 ) -> Option<[glam::DVec3; 2]> {
-    on.then(|| [views[0].0.center_in_station(), views[1].0.center_in_station()])
+    on.then(|| {
+        [
+            views[0].0.center_in_station(),
+            views[1].0.center_in_station(),
+        ]
+    })
 }
 
 pub(crate) fn debug_enabled() -> bool {
@@ -662,13 +667,13 @@ impl Fitter {
                     None => {
                         self.section_scratch.eyes = rim_depth_eyes(self.opts.rim_depth, views);
                         plan.targets(
-                        &s.rest.positions,
-                        &s.controls,
-                        &self.targets,
-                        &self.side_occluders,
-                        &mut self.section_scratch,
-                        &mut self.vertex_targets,
-                    )
+                            &s.rest.positions,
+                            &s.controls,
+                            &self.targets,
+                            &self.side_occluders,
+                            &mut self.section_scratch,
+                            &mut self.vertex_targets,
+                        )
                     }
                 }
             }

@@ -691,12 +691,9 @@ impl BackgroundModel {
         let m = self.px[i];
         let [er, eg, eb] = m.color();
         // A channel the model saw clipped is left out ([`classify::unclipped_weights`]).
-        let w = classify::unclipped_weights(
-            (er + 0.5) as i32,
-            (eg + 0.5) as i32,
-            (eb + 0.5) as i32,
-        )
-        .map(|k| k as f32);
+        let w =
+            classify::unclipped_weights((er + 0.5) as i32, (eg + 0.5) as i32, (eb + 0.5) as i32)
+                .map(|k| k as f32);
         let [er, eg, eb] = [er * w[0], eg * w[1], eb * w[2]];
         let ee = er * er + eg * eg + eb * eb;
         let tau2 = m.radius2();
