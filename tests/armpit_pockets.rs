@@ -9,27 +9,16 @@
 //! and the chest under it took both arms in (1588 mm against the truth's 1106). Replayed
 //! through its first five subject frames, the station's chest is now the trunk's.
 
-use fitstation::cli::{run_offline, RecordingSource};
-use fitstation::recording::FrameFormat;
-use fitstation::station::{default_library, StationOptions, StationProcessor};
-use fitstation::synth::{load_truth, render_recording, truth_dir};
-use std::path::PathBuf;
+mod common;
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("fitstation-armpit-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
+use fitstation::recording::FrameFormat;
+use fitstation::station::StationOptions;
+use fitstation::synth::{load_truth, render_recording, truth_dir};
 
 #[test]
 fn arms_held_in_leave_no_pocket_that_the_chest_takes_for_the_armpit() {
-    let dir = tmp("varied21");
-    let table = fitstation::synth::ansur::AnsurTable::load(
-        &fitstation::synth::ansur::resolve_dir(None).expect("ANSUR II beside the checkout"),
-    )
-    .expect("ANSUR II");
-    let mut cfg = fitstation::synth::ansur_member(&table, 62100, 21);
+    let dir = common::tmp_dir("armpit", "varied21");
+    let mut cfg = fitstation::synth::ansur_member(&common::ansur_table(), 62100, 21);
     cfg.subject.stance = Some(fitstation::synth::stance::Stance::sample(cfg.seed));
     cfg.subject_frames = 5;
     cfg.format = FrameFormat::Png;
@@ -42,23 +31,13 @@ fn arms_held_in_leave_no_pocket_that_the_chest_takes_for_the_armpit() {
     // the pocket was found on, session 26's; with the rims' depth this stance no longer
     // lifts the armpits' apexes, and the flood has nothing to do).
     for rim_depth in [true, false] {
-        let mut src = RecordingSource::open(&rec).expect("open the recording");
-        let calib = src.recording().calibration().clone();
-        let library = default_library().expect("shape library");
         let mut opts = StationOptions::default();
         opts.fit.rim_depth = rim_depth;
-        let mut station = StationProcessor::new(calib, library, opts).expect("station");
-        let summary = run_offline(&mut src, &mut station, None, false);
-        let report = &summary.report;
+        let report = &common::replay_report_with(&rec, opts);
         assert_eq!(report["frames"]["fitted"].as_u64(), Some(5), "{report}");
         // Every frame's chest (the series), not only the reported one: with the pocket
         // each was 470-480 mm over the truth.
-        let series: Vec<f64> = report["series"]
-            .as_array()
-            .expect("series")
-            .iter()
-            .filter_map(|r| r["chest_girth"].as_f64())
-            .collect();
+        let series = common::series(report, "chest_girth");
         assert_eq!(series.len(), 5, "{report}");
         for c in &series {
             assert!(
@@ -77,5 +56,4 @@ fn arms_held_in_leave_no_pocket_that_the_chest_takes_for_the_armpit() {
             );
         }
     }
-    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -60,10 +60,32 @@ pub fn tmp_dir(prefix: &str, name: &str) -> TempDir {
 
 /// The station's report.json for a recording replayed with the default options.
 pub fn replay_report(rec: &Path) -> serde_json::Value {
+    replay_report_with(rec, StationOptions::default())
+}
+
+/// The station's report.json for a recording replayed with `opts`.
+pub fn replay_report_with(rec: &Path, opts: StationOptions) -> serde_json::Value {
     let mut src = RecordingSource::open(rec).expect("open the recording");
     let calib = src.recording().calibration().clone();
     let library = default_library().expect("shape library");
-    let mut station =
-        StationProcessor::new(calib, library, StationOptions::default()).expect("station");
+    let mut station = StationProcessor::new(calib, library, opts).expect("station");
     run_offline(&mut src, &mut station, None, false).report
+}
+
+/// ANSUR II from `../shared` beside the checkout.
+pub fn ansur_table() -> fitstation::synth::ansur::AnsurTable {
+    fitstation::synth::ansur::AnsurTable::load(
+        &fitstation::synth::ansur::resolve_dir(None).expect("ANSUR II beside the checkout"),
+    )
+    .expect("ANSUR II")
+}
+
+/// Every frame's value of measurement `key` in a report's `series`.
+pub fn series(report: &serde_json::Value, key: &str) -> Vec<f64> {
+    report["series"]
+        .as_array()
+        .expect("series")
+        .iter()
+        .filter_map(|r| r[key].as_f64())
+        .collect()
 }
