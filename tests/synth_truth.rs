@@ -402,3 +402,43 @@ fn a_varied_stance_whose_thighs_merge_is_drawn_again() {
         .is_some_and(|&c| c > 500.0));
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// `synth-set --population ansur --first-seed 68010` drew a person whose body the
+/// template analysis could not take apart (her left arm could not be traced below the
+/// armpit) and the whole set stopped at its 11th member. Another ANSUR II person of the
+/// same sex is drawn from the seed, said on stderr, and the member is rendered.
+#[test]
+fn an_ansur_person_whose_body_cannot_be_analysed_is_drawn_again() {
+    if !body_available() {
+        return;
+    }
+    let out = tmp("person-redraw");
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
+        .args(["synth-set", "--out"])
+        .arg(&out)
+        .args([
+            "--count",
+            "1",
+            "--first-seed",
+            "68010",
+            "--format",
+            "png",
+            "--population",
+            "ansur",
+        ])
+        .output()
+        .expect("fitstation runs");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "synth-set failed: {stderr}");
+    assert!(
+        stderr.contains("another ANSUR II person drawn (1)"),
+        "{stderr}"
+    );
+    let member = out.join("subject_00");
+    let truth = load_truth(&truth_dir(&member)).expect("the member's truth");
+    assert!(truth
+        .measurements_mm
+        .get("chest_girth")
+        .is_some_and(|&c| c > 500.0));
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -188,7 +188,9 @@ fn print_summary(s: &SynthSummary) {
 /// builds (seeds `first-seed .. first-seed + count`). Bodies from the fit's own shape
 /// library (default, the regression set) or following real ANSUR II people
 /// (`--population ansur`); in the rest A-pose or a stance drawn per subject (`--stance
-/// varied`). Seeds 30000 and above are kept unseen for final judgements.
+/// varied`). Seeds 30000 and above are kept unseen for final judgements. A member whose
+/// body cannot be analysed is drawn again from its seed, said on stderr: first its stance
+/// (varied), then its ANSUR II person (same sex), at most 4 times each.
 #[derive(Debug, Clone, clap::Args)]
 pub struct SynthSetArgs {
     /// Folder receiving `subject_NN` recordings and their truth folders.
@@ -277,18 +279,41 @@ pub fn set_member(first_seed: u64, i: usize, count: usize) -> SynthConfig {
 pub fn ansur_member(table: &ansur::AnsurTable, first_seed: u64, i: usize) -> SynthConfig {
     let seed = first_seed + i as u64;
     let mut cfg = SynthConfig::from_seed(seed);
-    let sex = if i.is_multiple_of(2) {
+    set_ansur_person(table, &mut cfg, seed, member_sex(i));
+    cfg
+}
+
+/// The sex of member `i` of an ANSUR II set: women at even `i`, men at odd.
+fn member_sex(i: usize) -> ansur::Sex {
+    if i.is_multiple_of(2) {
         ansur::Sex::Female
     } else {
         ansur::Sex::Male
-    };
-    let record = table.pick(seed, sex).clone();
+    }
+}
+
+/// Gives `cfg` the ANSUR II person of `sex` drawn from `person_seed` (row, start body
+/// and local shape); the rest of the subject (scene, cameras, clothing) stays `cfg`'s.
+fn set_ansur_person(
+    table: &ansur::AnsurTable,
+    cfg: &mut SynthConfig,
+    person_seed: u64,
+    sex: ansur::Sex,
+) {
+    let record = table.pick(person_seed, sex).clone();
     cfg.subject.shape = ansur_body::macro_params(&record);
     cfg.subject.ansur = Some(ansur_body::AnsurSubject {
         record,
-        local: ansur_body::LocalShape::sample(seed),
+        local: ansur_body::LocalShape::sample(person_seed),
     });
-    cfg
+}
+
+/// People drawn again for an ANSUR II member whose body cannot be analysed.
+pub const MAX_PERSON_REDRAWS: u32 = 4;
+
+/// The seed of the `k`-th ANSUR II person drawn again for a member of seed `seed`.
+pub fn redrawn_person_seed(seed: u64, k: u32) -> u64 {
+    seed ^ (u64::from(k) << 48)
 }
 
 /// Stances drawn again for a varied-stance member whose posed body cannot be analysed.
@@ -333,6 +358,7 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
         };
         let out = args.out.join(format!("subject_{i:02}"));
         let mut redraws = 0;
+        let mut people = 0;
         let s = loop {
             match render_recording(&cfg, &out) {
                 // A varied stance can press the thighs together so that no crotch is
@@ -348,6 +374,26 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
                     cfg.subject.stance = Some(stance::Stance::sample(redrawn_stance_seed(
                         cfg.seed, redraws,
                     )));
+                }
+                // A person's body itself can defeat the analysis (a heavy arm that
+                // cannot be traced below the armpit, seed 68010): another person of the
+                // same sex is drawn from the seed (deterministically), in the first
+                // stance again.
+                Err(SynthError::Unanalysable(e)) if people < MAX_PERSON_REDRAWS => {
+                    let Some(t) = &table else {
+                        return Err(SynthError::Unanalysable(e).into());
+                    };
+                    people += 1;
+                    eprintln!(
+                        "subject_{i:02} (seed {}): {e}; another ANSUR II person drawn ({people})",
+                        cfg.seed
+                    );
+                    let person_seed = redrawn_person_seed(cfg.seed, people);
+                    set_ansur_person(t, &mut cfg, person_seed, member_sex(i));
+                    redraws = 0;
+                    if args.stance == StanceKind::Varied {
+                        cfg.subject.stance = Some(stance::Stance::sample(cfg.seed));
+                    }
                 }
                 r => break r?,
             }
