@@ -337,7 +337,10 @@ mod tests {
         let hidden = frame_sigma_mm("waist_girth", 800.0, Some(ev(1.0, 0.0, 1.0)));
         // Both extents seen to 1 mm a side: shape (1.79 % of 800 mm) and 1.57 * 2 mm.
         let shape = 0.0179 * 800.0;
-        assert!((seen - (shape * shape + (1.5708 * 2.0f64).powi(2)).sqrt()).abs() < 0.05);
+        assert!(
+            (seen - (shape * shape + (std::f64::consts::FRAC_PI_2 * 2.0).powi(2)).sqrt()).abs()
+                < 0.05
+        );
         // The depth unseen: its prior (15 mm) takes over, so the waist's sigma passes 20 mm.
         assert!(hidden > 20.0 && hidden < 30.0, "{hidden}");
         // No evidence at all is wider still.
