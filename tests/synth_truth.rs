@@ -365,6 +365,30 @@ fn synth_turns_the_subject_on_the_mark() {
     assert!(String::from_utf8_lossy(&refused.stderr).contains("--turn-deg 90"));
 }
 
+/// Runs `synth-set --count 1 --format png --population ansur` with `args` into a fresh
+/// folder named `name`, expects it to succeed with `said` on stderr, and checks the one
+/// member's truth has a chest.
+fn one_ansur_member_redrawn(name: &str, args: &[&str], said: &str) {
+    let out = tmp(name);
+    let run = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
+        .args(["synth-set", "--out"])
+        .arg(&out)
+        .args(["--count", "1", "--format", "png", "--population", "ansur"])
+        .args(args)
+        .output()
+        .expect("fitstation runs");
+    let stderr = String::from_utf8_lossy(&run.stderr);
+    assert!(run.status.success(), "synth-set failed: {stderr}");
+    assert!(stderr.contains(said), "{stderr}");
+    let member = out.join("subject_00");
+    let truth = load_truth(&truth_dir(&member)).expect("the member's truth");
+    assert!(truth
+        .measurements_mm
+        .get("chest_girth")
+        .is_some_and(|&c| c > 500.0));
+    let _ = std::fs::remove_dir_all(&out);
+}
+
 /// `synth-set --stance varied --first-seed 62106` drew a stance that pressed the thighs
 /// together: the posed body had no crotch and the whole set stopped. The stance is drawn
 /// again from the seed and the member is rendered, the redraw said on stderr.
@@ -373,34 +397,11 @@ fn a_varied_stance_whose_thighs_merge_is_drawn_again() {
     if !body_available() {
         return;
     }
-    let out = tmp("redraw");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
-        .args(["synth-set", "--out"])
-        .arg(&out)
-        .args([
-            "--count",
-            "1",
-            "--first-seed",
-            "62106",
-            "--format",
-            "png",
-            "--population",
-            "ansur",
-            "--stance",
-            "varied",
-        ])
-        .output()
-        .expect("fitstation runs");
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(run.status.success(), "synth-set failed: {stderr}");
-    assert!(stderr.contains("stance drawn again (1)"), "{stderr}");
-    let member = out.join("subject_00");
-    let truth = load_truth(&truth_dir(&member)).expect("the member's truth");
-    assert!(truth
-        .measurements_mm
-        .get("chest_girth")
-        .is_some_and(|&c| c > 500.0));
-    let _ = std::fs::remove_dir_all(&out);
+    one_ansur_member_redrawn(
+        "redraw",
+        &["--first-seed", "62106", "--stance", "varied"],
+        "stance drawn again (1)",
+    );
 }
 
 /// `synth-set --population ansur --first-seed 68010` drew a person whose body the
@@ -412,33 +413,9 @@ fn an_ansur_person_whose_body_cannot_be_analysed_is_drawn_again() {
     if !body_available() {
         return;
     }
-    let out = tmp("person-redraw");
-    let run = std::process::Command::new(env!("CARGO_BIN_EXE_fitstation"))
-        .args(["synth-set", "--out"])
-        .arg(&out)
-        .args([
-            "--count",
-            "1",
-            "--first-seed",
-            "68010",
-            "--format",
-            "png",
-            "--population",
-            "ansur",
-        ])
-        .output()
-        .expect("fitstation runs");
-    let stderr = String::from_utf8_lossy(&run.stderr);
-    assert!(run.status.success(), "synth-set failed: {stderr}");
-    assert!(
-        stderr.contains("another ANSUR II person drawn (1)"),
-        "{stderr}"
+    one_ansur_member_redrawn(
+        "person-redraw",
+        &["--first-seed", "68010"],
+        "another ANSUR II person drawn (1)",
     );
-    let member = out.join("subject_00");
-    let truth = load_truth(&truth_dir(&member)).expect("the member's truth");
-    assert!(truth
-        .measurements_mm
-        .get("chest_girth")
-        .is_some_and(|&c| c > 500.0));
-    let _ = std::fs::remove_dir_all(&out);
 }

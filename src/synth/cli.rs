@@ -379,17 +379,18 @@ pub fn run_set(args: SynthSetArgs) -> anyhow::Result<()> {
                 // cannot be traced below the armpit, seed 68010): another person of the
                 // same sex is drawn from the seed (deterministically), in the first
                 // stance again.
-                Err(SynthError::Unanalysable(e)) if people < MAX_PERSON_REDRAWS => {
-                    let Some(t) = &table else {
-                        return Err(SynthError::Unanalysable(e).into());
-                    };
+                Err(SynthError::Unanalysable(e))
+                    if people < MAX_PERSON_REDRAWS && table.is_some() =>
+                {
                     people += 1;
                     eprintln!(
                         "subject_{i:02} (seed {}): {e}; another ANSUR II person drawn ({people})",
                         cfg.seed
                     );
                     let person_seed = redrawn_person_seed(cfg.seed, people);
-                    set_ansur_person(t, &mut cfg, person_seed, member_sex(i));
+                    if let Some(t) = &table {
+                        set_ansur_person(t, &mut cfg, person_seed, member_sex(i));
+                    }
                     redraws = 0;
                     if args.stance == StanceKind::Varied {
                         cfg.subject.stance = Some(stance::Stance::sample(cfg.seed));
