@@ -136,3 +136,59 @@ fn moving_the_body_2_cm_moves_every_value_by_at_most_0_1_mm() {
         assert!((m.levels.axis_x_m - base.levels.axis_x_m - shift.x).abs() < 1e-6);
     }
 }
+
+/// A measurer's height index lists only the triangles near the heights a measurement
+/// cuts (the head and lower legs left out); a measurer whose index lists every triangle
+/// (built for a girth query first, then kept for the same mesh) must give every value,
+/// level and profile sample to the bit, on the template and on it made shorter, taller
+/// and with longer legs (other crotch and armpit heights inside the window).
+#[test]
+fn the_height_window_of_the_index_changes_nothing() {
+    use fitstation::measure::{LoopSelector, Measurer};
+    let Some(mesh) = template() else { return };
+    let ground = mesh
+        .positions
+        .iter()
+        .map(|p| p.y)
+        .fold(f64::INFINITY, f64::min);
+    let legs = |p: DVec3| {
+        let h = p.y - ground;
+        let stretched = if h < 0.8 { h * 1.12 } else { h + 0.8 * 0.12 };
+        DVec3::new(p.x, ground + stretched, p.z)
+    };
+    let variants: [(&str, Box<dyn Fn(DVec3) -> DVec3>); 4] = [
+        ("template", Box::new(|p| p)),
+        ("0.9 tall", Box::new(|p| p * 0.9)),
+        ("1.1 tall", Box::new(|p| p * 1.1)),
+        ("long legs", Box::new(legs)),
+    ];
+    for (name, map) in variants {
+        let mut m = mesh.clone();
+        m.map_positions(&*map);
+        let windowed = Measurer::new().measure(&m).expect(name);
+        let mut everywhere = Measurer::new();
+        // The girth query builds the index over every triangle; measuring the same mesh
+        // then keeps it.
+        let head = m
+            .positions
+            .iter()
+            .map(|p| p.y)
+            .fold(f64::NEG_INFINITY, f64::max);
+        assert!(everywhere
+            .girth_at(&m, head - 0.05, LoopSelector::Whole)
+            .is_some());
+        let whole = everywhere.measure(&m).expect(name);
+        let (d, key) = largest_change(&windowed, &whole);
+        assert!(
+            windowed == whole,
+            "{name}: the windowed index measures otherwise (largest reported change {d:.3} mm, \
+             {key}; levels {:?} against {:?})",
+            windowed.levels,
+            whole.levels
+        );
+        println!(
+            "{name}: chest {:.2} mm, crotch {:.3} m",
+            whole.chest_girth_mm, whole.levels.crotch_m
+        );
+    }
+}

@@ -53,7 +53,10 @@
 //!
 //! # Speed
 //! A [`Measurer`] keeps the triangles' edge table (while the topology stays), a height
-//! index of the triangles and all section buffers between calls: each slice visits only
+//! index of the triangles (listing only those near the heights a measurement cuts, from
+//! the thigh band under the lowest crotch searched to the armpit search's top: the head
+//! and lower legs, about half a body's triangles, are not indexed) and all section
+//! buffers between calls: each slice visits only
 //! the triangles near its level, and [`Measurer::measure_into`] allocates nothing once
 //! warm. Torso questions (crotch scan, torso grid, band refinements) cut only the loops
 //! across the plane x = axis ([`slicer::SectionScratch::cut_across_x`]: the same loops,
@@ -357,10 +360,15 @@ impl Measurer {
 
     /// Checks the mesh and rebuilds the height index for it, unless it is the mesh the
     /// index was last built for (same triangles and bit-identical positions).
-    fn load(&mut self, mesh: &TriMesh) -> Result<(), MeasureError> {
+    ///
+    /// With `everywhere` false the index lists only the triangles near the heights
+    /// [`Measurer::measure_into`] cuts ([`Measurer::measured_heights`]); with it true,
+    /// every triangle (an index built either way serves a height it covers).
+    fn load(&mut self, mesh: &TriMesh, everywhere: bool) -> Result<(), MeasureError> {
         if self.loaded
             && self.loaded_positions == mesh.positions
             && self.index.topology_matches(&mesh.triangles)
+            && (!everywhere || self.index.covers_everywhere())
         {
             return Ok(());
         }
@@ -403,10 +411,30 @@ impl Measurer {
         }
         self.y_min = lo;
         self.y_max = hi;
-        self.index.rebuild(mesh, lo, hi);
+        if everywhere {
+            self.index.rebuild(mesh, lo, hi);
+        } else {
+            self.index
+                .rebuild_window(mesh, lo, hi, self.measured_heights());
+        }
         self.loaded_positions.clone_from(&mesh.positions);
         self.loaded = true;
         Ok(())
+    }
+
+    /// Every height [`Measurer::measure_into`] cuts lies in here: the crotch search from
+    /// [`CROTCH_SEARCH_BOTTOM_OF_STATURE`] S up (the thigh band reaches
+    /// [`THIGH_BAND_BELOW_CROTCH_M`].1 below a crotch found there), up to the armpit
+    /// search's top, [`ARMPIT_SEARCH_TOP_OF_STATURE`] S (grid rounding aside: a millimetre
+    /// of margin on each side).
+    fn measured_heights(&self) -> (f64, f64) {
+        const MARGIN_M: f64 = 0.001;
+        (
+            self.at_stature(CROTCH_SEARCH_BOTTOM_OF_STATURE)
+                - THIGH_BAND_BELOW_CROTCH_M.1
+                - MARGIN_M,
+            self.at_stature(ARMPIT_SEARCH_TOP_OF_STATURE.max(AXIS_PROBE_OF_STATURE)) + MARGIN_M,
+        )
     }
 
     fn stature(&self) -> f64 {
@@ -545,7 +573,7 @@ impl Measurer {
     /// Tape girth (metres) at height `y` around the loop(s) chosen by `selector`, as
     /// [`girth_at`]; the height index is rebuilt only when the mesh changed.
     pub fn girth_at(&mut self, mesh: &TriMesh, y: f64, selector: LoopSelector) -> Option<f64> {
-        self.load(mesh).ok()?;
+        self.load(mesh, true).ok()?;
         self.cut(mesh, y);
         self.select(selector).map(|h| h.perimeter_m)
     }
@@ -797,7 +825,7 @@ impl Measurer {
         mesh: &TriMesh,
         out: &mut Measurements,
     ) -> Result<(), MeasureError> {
-        self.load(mesh)?;
+        self.load(mesh, false)?;
         let stature = self.stature();
         let axis_x = self.body_axis(mesh)?;
         self.index.index_axis(axis_x);

@@ -43,8 +43,11 @@ pub struct LevelIndex {
     entries: Vec<Entry>,
     counts: Vec<u32>,
     ranges: Vec<(f64, f64)>,
-    /// First and last bucket of each triangle.
+    /// First and last bucket of each triangle ([`NOT_LISTED`]: outside the window).
     spans: Vec<(u32, u32)>,
+    /// Heights whose sections find every triangle they cross (see
+    /// [`LevelIndex::rebuild_window`]); empty before the first build.
+    covered: (f64, f64),
     /// The triangle list the neighbours were built for.
     topology: Vec<[u32; 3]>,
     /// `neighbours[t][e]`: the triangle across edge e (vertices e, e+1) of t, or
@@ -120,6 +123,8 @@ fn triangle_segment(mesh: &TriMesh, t: [u32; 3], y: f64) -> Option<([DVec2; 2], 
 
 /// Marks a boundary edge in [`LevelIndex`]'s neighbour table.
 const NO_NEIGHBOUR: u32 = u32::MAX;
+/// The bucket span of a triangle a windowed [`LevelIndex`] does not list.
+const NOT_LISTED: (u32, u32) = (u32::MAX, u32::MAX);
 
 impl LevelIndex {
     /// Rebuilds the index for `mesh` (indices must already be checked in range).
@@ -129,18 +134,37 @@ impl LevelIndex {
     /// section visits about 1.5 times the triangles it actually cuts (the others are
     /// rejected by their stored height range without touching the mesh).
     pub fn rebuild(&mut self, mesh: &TriMesh, y_min: f64, y_max: f64) {
+        self.rebuild_window(mesh, y_min, y_max, (f64::NEG_INFINITY, f64::INFINITY));
+    }
+
+    /// As [`LevelIndex::rebuild`], listing only the triangles that reach into the heights
+    /// `window` (clipped to `y_min..y_max`): a section at a height outside it is not
+    /// asked for ([`LevelIndex::covers`] says which are), and the triangles far from
+    /// every height asked (a standing body's head and lower legs) cost nothing.
+    pub fn rebuild_window(&mut self, mesh: &TriMesh, y_min: f64, y_max: f64, window: (f64, f64)) {
         if self.topology != mesh.triangles {
             self.rebuild_neighbours(&mesh.triangles);
         }
+        let (y_min, y_max) = (
+            y_min.max(window.0),
+            y_max.min(window.1).max(y_min.max(window.0)),
+        );
+        self.covered = (window.0 - RANGE_SLACK_M, window.1 + RANGE_SLACK_M);
+        // A triangle within the range slack of a covered height may be cut there.
+        let (keep_lo, keep_hi) = (y_min - 2.0 * RANGE_SLACK_M, y_max + 2.0 * RANGE_SLACK_M);
         let height = (y_max - y_min).max(f64::MIN_POSITIVE);
         self.ranges.clear();
         let mut span_sum = 0.0;
+        let mut kept = 0usize;
         for t in &mesh.triangles {
             let r = tri_y_range(mesh, t);
-            span_sum += r.1 - r.0;
+            if r.1 >= keep_lo && r.0 <= keep_hi {
+                span_sum += r.1 - r.0;
+                kept += 1;
+            }
             self.ranges.push(r);
         }
-        let mean_span = span_sum / mesh.triangles.len().max(1) as f64;
+        let mean_span = span_sum / kept.max(1) as f64;
         let bucket_h = (0.5 * mean_span)
             .max(height / MAX_BUCKETS as f64)
             .max(f64::MIN_POSITIVE);
@@ -154,6 +178,10 @@ impl LevelIndex {
         let mut spans = std::mem::take(&mut self.spans);
         spans.clear();
         for &(lo, hi) in &self.ranges {
+            if hi < keep_lo || lo > keep_hi {
+                spans.push(NOT_LISTED);
+                continue;
+            }
             let (b0, b1) = (self.bucket(lo), self.bucket(hi));
             spans.push((b0 as u32, b1 as u32));
             for c in &mut counts[b0..=b1] {
@@ -174,6 +202,9 @@ impl LevelIndex {
             *c = o;
         }
         for (i, &(b0, b1)) in spans.iter().enumerate() {
+            if (b0, b1) == NOT_LISTED {
+                continue;
+            }
             let (lo, hi) = self.ranges[i];
             let xs = mesh.triangles[i].map(|v| mesh.positions[v as usize].x);
             let entry = Entry {
@@ -303,6 +334,17 @@ impl LevelIndex {
         }
     }
 
+    /// Whether a section at height `y` finds every triangle it crosses (the heights
+    /// the index was built for: everywhere, or its window).
+    pub fn covers(&self, y: f64) -> bool {
+        y >= self.covered.0 && y <= self.covered.1
+    }
+
+    /// Whether the index lists every triangle (built by [`LevelIndex::rebuild`]).
+    pub fn covers_everywhere(&self) -> bool {
+        self.covered.0 == f64::NEG_INFINITY && self.covered.1 == f64::INFINITY
+    }
+
     /// Whether the edge neighbours were built for this triangle list.
     pub fn topology_matches(&self, triangles: &[[u32; 3]]) -> bool {
         self.topology == triangles
@@ -320,7 +362,7 @@ impl LevelIndex {
     }
 
     fn bucket_range(&self, y: f64) -> std::ops::Range<usize> {
-        if self.offsets.len() != self.n_buckets + 1 || self.n_buckets == 0 {
+        if self.offsets.len() != self.n_buckets + 1 || self.n_buckets == 0 || !self.covers(y) {
             return 0..0;
         }
         let b = self.bucket(y);
