@@ -70,18 +70,16 @@ pub fn mesh(data: &[u8]) -> Result<(), String> {
     let ply = parse_ply(data, name).map_err(|e| e.to_string());
     let obj = parse_obj(data, name, None).map_err(|e| e.to_string());
     let _ = parse_obj(data, name, Some("body"));
-    for m in [&ply, &obj] {
-        if let Ok(m) = m {
-            let mut text = Vec::new();
-            write_obj_to(&mut text, m).map_err(|e| e.to_string())?;
-            let back = parse_obj(text.as_slice(), name, None)
-                .unwrap_or_else(|e| panic!("an accepted mesh does not read back as OBJ: {e}"));
-            assert_eq!(
-                (back.vertex_count(), back.triangles.len()),
-                (m.vertex_count(), m.triangles.len()),
-                "an accepted mesh changes in an OBJ round trip"
-            );
-        }
+    for m in [&ply, &obj].into_iter().flatten() {
+        let mut text = Vec::new();
+        write_obj_to(&mut text, m).map_err(|e| e.to_string())?;
+        let back = parse_obj(text.as_slice(), name, None)
+            .unwrap_or_else(|e| panic!("an accepted mesh does not read back as OBJ: {e}"));
+        assert_eq!(
+            (back.vertex_count(), back.triangles.len()),
+            (m.vertex_count(), m.triangles.len()),
+            "an accepted mesh changes in an OBJ round trip"
+        );
     }
     match (ply, obj) {
         (Err(p), Err(o)) => Err(format!("as PLY: {p}; as OBJ: {o}")),

@@ -10,6 +10,9 @@
 //! `mesh`, `body` (template, shape library) underneath; `app` wires them together with
 //! capture and the screen.
 
+// Negated comparisons such as `!(x >= 0.0)` are deliberate: they reject NaN as well.
+#![allow(clippy::neg_cmp_op_on_partial_ord)]
+
 #[cfg(feature = "gui")]
 pub mod app;
 pub mod body;

@@ -775,6 +775,9 @@ fn every_vertex_a_control_is_solved_exactly() {
     }
 }
 
+/// One warm-refit case: name, mesh, control vertices, first targets, nudged targets.
+type WarmCase<'a> = (&'a str, TriMesh, Vec<u32>, Vec<DVec3>, Vec<DVec3>);
+
 /// A warm refit at the default tolerance (0.1 mm) lands within 0.1 mm of the fixed point
 /// converged tightly from the same start, frame after frame: the short path of a warm
 /// refit (a predictor, one chord step whose move is the convergence test, no closing
@@ -783,7 +786,7 @@ fn every_vertex_a_control_is_solved_exactly() {
 /// and one re-linearised at the first frame's result (the bench's warm refit).
 #[test]
 fn a_warm_refit_lands_within_the_tolerance_of_the_converged_fixed_point() {
-    let mut cases: Vec<(&str, TriMesh, Vec<u32>, Vec<DVec3>, Vec<DVec3>)> = small_meshes()
+    let mut cases: Vec<WarmCase> = small_meshes()
         .into_iter()
         .filter(|(name, _)| *name != "bumpy patch")
         .map(|(name, m)| {

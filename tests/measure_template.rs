@@ -137,6 +137,9 @@ fn moving_the_body_2_cm_moves_every_value_by_at_most_0_1_mm() {
     }
 }
 
+/// A named reshaping of the template's vertex positions.
+type Variant<'a> = (&'a str, Box<dyn Fn(DVec3) -> DVec3 + 'a>);
+
 /// A measurer's height index lists only the triangles near the heights a measurement
 /// cuts (the head and lower legs left out); a measurer whose index lists every triangle
 /// (built for a girth query first, then kept for the same mesh) must give every value,
@@ -156,7 +159,7 @@ fn the_height_window_of_the_index_changes_nothing() {
         let stretched = if h < 0.8 { h * 1.12 } else { h + 0.8 * 0.12 };
         DVec3::new(p.x, ground + stretched, p.z)
     };
-    let variants: [(&str, Box<dyn Fn(DVec3) -> DVec3>); 4] = [
+    let variants: [Variant; 4] = [
         ("template", Box::new(|p| p)),
         ("0.9 tall", Box::new(|p| p * 0.9)),
         ("1.1 tall", Box::new(|p| p * 1.1)),

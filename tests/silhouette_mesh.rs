@@ -74,6 +74,8 @@ fn edge(a: DVec2, b: DVec2, p: DVec2) -> f64 {
 }
 
 /// Renders the mesh over an empty-scene frame: (frame, ground-truth mask).
+// Index arithmetic over several arrays reads better with indices.
+#[allow(clippy::needless_range_loop)]
 fn render_mesh(mesh: &TriMesh, cam: &Camera, background: &RgbImage, seed: u64) -> (RgbImage, Mask) {
     let (w, h) = (
         cam.intrinsics.width as usize,

@@ -33,7 +33,7 @@ impl StationApp {
             });
             if let Some((w, d)) = rec {
                 ui.separator();
-                let blink = (now * 2.0) as u64 % 2 == 0;
+                let blink = ((now * 2.0) as u64).is_multiple_of(2);
                 let (r, _) = ui.allocate_exact_size(Vec2::splat(14.0), egui::Sense::hover());
                 if blink {
                     ui.painter().circle_filled(r.center(), 6.0, Color32::RED);

@@ -217,6 +217,9 @@ fn calibrate_lenses(
     Ok((calibs, [intr[0], intr[1]]))
 }
 
+/// Both cameras' poses and the (key, value) notes that record how they were found.
+type PosesAndNotes = ([Rigid; 2], Vec<(String, String)>);
+
 /// Both cameras' poses: placed from one image each of the placement board at the mark,
 /// or kept from the previous calibration, or nominal placeholders; with the notes that
 /// record how they were found.
@@ -227,7 +230,7 @@ fn camera_poses(
     [front_intr, side_intr]: [Intrinsics; 2],
     previous: Option<&StationCalibration>,
     out: &Path,
-) -> anyhow::Result<([Rigid; 2], Vec<(String, String)>)> {
+) -> anyhow::Result<PosesAndNotes> {
     let mut extra: Vec<(String, String)> = Vec::new();
     let poses: [Rigid; 2] = match (&args.station_front, &args.station_side) {
         (Some(sf), Some(ss)) => {

@@ -292,7 +292,7 @@ pub fn device_index(name: &str) -> Option<u32> {
 /// `out` receives width*height*3 bytes; returns false when `yuyv` is too short.
 pub fn yuyv_to_rgb(yuyv: &[u8], width: usize, height: usize, out: &mut Vec<u8>) -> bool {
     let need = width * height * 2;
-    if yuyv.len() < need || width % 2 != 0 {
+    if yuyv.len() < need || !width.is_multiple_of(2) {
         return false;
     }
     out.clear();

@@ -241,7 +241,7 @@ mod tests {
     #[test]
     fn a_branching_shape_has_a_junction() {
         // A "T": a bar with a stem; the axis branches where they meet.
-        let poly = vec![
+        let poly = [
             DVec2::new(0.0, 0.0),
             DVec2::new(40.0, 0.0),
             DVec2::new(40.0, 100.0),

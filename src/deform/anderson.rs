@@ -141,6 +141,9 @@ impl Anderson {
     }
 
     /// gamma = argmin |f - DF gamma| through the ridge-regularised normal equations.
+    // Elimination over the rows of `a`, `df`, `gram` and `gamma`: index arithmetic reads
+    // better with indices.
+    #[allow(clippy::needless_range_loop)]
     fn solve_mixing(&self, gamma: &mut [f64; ANDERSON_DEPTH]) -> Option<()> {
         let (n, k) = (self.n, self.count);
         let mut a = [[0.0f64; ANDERSON_DEPTH + 1]; ANDERSON_DEPTH];

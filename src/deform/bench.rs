@@ -490,7 +490,7 @@ fn time_encoding(mesh: &TriMesh, repeats: usize) -> anyhow::Result<MeanValueEnco
     let mut encoding = None;
     for _ in 0..repeats {
         let t = Instant::now();
-        let e = MeanValueEncoding::encode(&mesh, &rings);
+        let e = MeanValueEncoding::encode(mesh, &rings);
         enc_times.push(ms(t));
         encoding = Some(e);
     }
@@ -541,7 +541,7 @@ fn time_fast_setup(
     };
     let t = Instant::now();
     let mut full = MvcDeformer::from_encoding(
-        &mesh,
+        mesh,
         encoding.clone(),
         DecoderKind::FastGaussNewton,
         full_opts,
@@ -697,7 +697,7 @@ fn time_frozen_variant(
         ..opts
     };
     let mut frozen = MvcDeformer::from_encoding(
-        &mesh,
+        mesh,
         encoding.clone(),
         DecoderKind::FastGaussNewton,
         frozen_opts,

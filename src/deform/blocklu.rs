@@ -505,6 +505,8 @@ mod tests {
 
     /// A random-ish block matrix on a ring-of-rings graph, diagonally dominant.
     #[test]
+    // Index arithmetic over several arrays reads better with indices.
+    #[allow(clippy::needless_range_loop)]
     fn solves_a_block_system() {
         let n = 40usize;
         // Graph: cycle plus chords i -- i+7.

@@ -105,6 +105,8 @@ pub(crate) struct CoupledSystem {
 impl CoupledSystem {
     /// Lays out `J` for the free vertices (`!fixed`) and analyses its block LU. No numbers
     /// yet: call [`Self::linearise`].
+    // Index arithmetic over several arrays reads better with indices.
+    #[allow(clippy::needless_range_loop)]
     pub(crate) fn new(
         enc: &MeanValueEncoding,
         fixed: &[bool],

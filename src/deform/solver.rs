@@ -175,6 +175,8 @@ impl NormalEquations {
 
     /// Assembles and factors `A` for the fixed set `fixed` (controls and anchors) under
     /// `mode`. Rows of fixed vertices are left out (their vertices are not free).
+    // Index arithmetic over several arrays reads better with indices.
+    #[allow(clippy::needless_range_loop)]
     pub(crate) fn factor(&mut self, fixed: &[bool], mode: Constraints) -> Result<(), DeformError> {
         self.fixed.clear();
         self.fixed.extend_from_slice(fixed);
@@ -236,6 +238,8 @@ impl NormalEquations {
     /// Solves for positions given per-vertex right-hand sides `delta` (used for free rows)
     /// and the values of the fixed vertices, read from `positions` (targets already
     /// written there). Writes the solution into `positions`; returns the largest move.
+    // Index arithmetic over several arrays reads better with indices.
+    #[allow(clippy::needless_range_loop)]
     pub(crate) fn solve(&mut self, delta: &[DVec3], positions: &mut [DVec3]) -> f64 {
         debug_assert!(self.factored);
         let n = self.n;

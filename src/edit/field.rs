@@ -14,6 +14,7 @@
 use crate::deform::cotangent;
 use crate::mesh::TriMesh;
 use std::cmp::Reverse;
+use std::collections::hash_map::Entry;
 use std::collections::{BinaryHeap, HashMap, HashSet};
 
 /// Smallest cotangent weight kept (obtuse angles give negative ones).
@@ -176,8 +177,8 @@ impl Bilaplacian {
             order.iter().enumerate().map(|(i, &v)| (v, i)).collect();
         for i in 0..order.len() {
             for &u in adj.neighbours(order[i]) {
-                if !local.contains_key(&u) {
-                    local.insert(u, order.len());
+                if let Entry::Vacant(e) = local.entry(u) {
+                    e.insert(order.len());
                     order.push(u);
                 }
             }

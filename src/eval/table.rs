@@ -87,10 +87,13 @@ pub struct EvalTable {
     pub failures: Vec<String>,
 }
 
+/// Per measurement name: each subject's (error mm, subject, ± mm when known).
+type ErrorsByMeasurement<'a> = BTreeMap<String, Vec<(f64, &'a str, Option<f64>)>>;
+
 impl EvalTable {
     /// Per-measurement MAE, bias and worst error (subjects whose report has it).
     pub fn summary(&self) -> Vec<MeasurementSummary> {
-        let mut by: BTreeMap<String, Vec<(f64, &str, Option<f64>)>> = BTreeMap::new();
+        let mut by: ErrorsByMeasurement = BTreeMap::new();
         for r in &self.rows {
             for m in &r.measurements {
                 if let Some(e) = m.error_mm {

@@ -982,6 +982,8 @@ fn shape_refine(
 }
 
 /// Solves a small dense system by Gaussian elimination with partial pivoting.
+// Index arithmetic over several arrays reads better with indices.
+#[allow(clippy::needless_range_loop)]
 pub(crate) fn solve_small<const N: usize>(
     mut a: [[f64; N]; N],
     mut b: [f64; N],

@@ -8,6 +8,7 @@
 //! - between: an arm when it lies outside the torso's side planes, which run vertically
 //!   through the armpits and, above them, through the acromions' inner... i.e. the
 //!   armpit x; the torso otherwise.
+//!
 //! Hands hanging below the crotch are recognised by connectivity: a vertex below the
 //! crotch is a leg only if it is connected to the sole of its side through vertices below
 //! the crotch.

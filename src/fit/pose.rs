@@ -272,6 +272,69 @@ pub fn nearest_rotation(m: DMat3) -> DMat3 {
     r
 }
 
+/// Shortest and longest reach of the arm samples from the shoulder, fractions of stature.
+const ARM_SAMPLE_REACH: (f64, f64) = (0.08, 0.24);
+/// Samples along one candidate arm direction.
+const ARM_SAMPLES: usize = 16;
+/// Step and range of the abduction search, radians.
+const ARM_ANGLE_STEP: f64 = 0.01;
+const ARM_ANGLE_RANGE: (f64, f64) = (0.12, 1.4);
+/// Fraction of the samples that must fall inside the silhouette for a direction to lie
+/// along the arm.
+const ARM_INSIDE_FRACTION: f64 = 0.85;
+
+/// Arm abduction seen in the front silhouette, for when the landmarks give none: from
+/// each shoulder joint, directions in the front (XY) plane are swept from nearly
+/// horizontal downward; the first run of directions whose ray stays inside the silhouette
+/// is the arm, and its middle is the arm's axis. None for an arm whose run reaches the
+/// torso (arm against the body: no gap to tell them apart).
+pub fn observed_arm_angles(
+    front: (&crate::camera::Camera, super::correspond::MaskRef<'_>),
+    shoulders: [DVec3; 2],
+    stature_m: f64,
+) -> Option<(f64, f64)> {
+    let (cam, mask) = front;
+    let mut out = [0.0f64; 2];
+    for (k, (side, j)) in [(1.0f64, shoulders[0]), (-1.0, shoulders[1])]
+        .into_iter()
+        .enumerate()
+    {
+        let inside = |theta: f64| -> bool {
+            let d = DVec3::new(side * theta.sin(), -theta.cos(), 0.0);
+            let mut hits = 0;
+            for i in 0..ARM_SAMPLES {
+                let f = i as f64 / (ARM_SAMPLES - 1) as f64;
+                let s = (ARM_SAMPLE_REACH.0 + f * (ARM_SAMPLE_REACH.1 - ARM_SAMPLE_REACH.0))
+                    * stature_m;
+                if cam
+                    .project(j + d * s)
+                    .map(|px| mask.occupancy(px) >= 0.5)
+                    .unwrap_or(false)
+                {
+                    hits += 1;
+                }
+            }
+            hits as f64 >= ARM_INSIDE_FRACTION * ARM_SAMPLES as f64
+        };
+        let mut theta = ARM_ANGLE_RANGE.1;
+        let mut run: Option<(f64, f64)> = None;
+        while theta >= ARM_ANGLE_RANGE.0 {
+            if inside(theta) {
+                run = Some(run.map_or((theta, theta), |r| (theta, r.1)));
+            } else if run.is_some() {
+                break;
+            }
+            theta -= ARM_ANGLE_STEP;
+        }
+        let (lo, hi) = run?;
+        if lo < ARM_ANGLE_RANGE.0 + ARM_ANGLE_STEP {
+            return None;
+        }
+        out[k] = 0.5 * (lo + hi);
+    }
+    Some((out[0], out[1]))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -350,67 +413,4 @@ mod tests {
             assert!((*a - *b).length() < 2e-3);
         }
     }
-}
-
-/// Shortest and longest reach of the arm samples from the shoulder, fractions of stature.
-const ARM_SAMPLE_REACH: (f64, f64) = (0.08, 0.24);
-/// Samples along one candidate arm direction.
-const ARM_SAMPLES: usize = 16;
-/// Step and range of the abduction search, radians.
-const ARM_ANGLE_STEP: f64 = 0.01;
-const ARM_ANGLE_RANGE: (f64, f64) = (0.12, 1.4);
-/// Fraction of the samples that must fall inside the silhouette for a direction to lie
-/// along the arm.
-const ARM_INSIDE_FRACTION: f64 = 0.85;
-
-/// Arm abduction seen in the front silhouette, for when the landmarks give none: from
-/// each shoulder joint, directions in the front (XY) plane are swept from nearly
-/// horizontal downward; the first run of directions whose ray stays inside the silhouette
-/// is the arm, and its middle is the arm's axis. None for an arm whose run reaches the
-/// torso (arm against the body: no gap to tell them apart).
-pub fn observed_arm_angles(
-    front: (&crate::camera::Camera, super::correspond::MaskRef<'_>),
-    shoulders: [DVec3; 2],
-    stature_m: f64,
-) -> Option<(f64, f64)> {
-    let (cam, mask) = front;
-    let mut out = [0.0f64; 2];
-    for (k, (side, j)) in [(1.0f64, shoulders[0]), (-1.0, shoulders[1])]
-        .into_iter()
-        .enumerate()
-    {
-        let inside = |theta: f64| -> bool {
-            let d = DVec3::new(side * theta.sin(), -theta.cos(), 0.0);
-            let mut hits = 0;
-            for i in 0..ARM_SAMPLES {
-                let f = i as f64 / (ARM_SAMPLES - 1) as f64;
-                let s = (ARM_SAMPLE_REACH.0 + f * (ARM_SAMPLE_REACH.1 - ARM_SAMPLE_REACH.0))
-                    * stature_m;
-                if cam
-                    .project(j + d * s)
-                    .map(|px| mask.occupancy(px) >= 0.5)
-                    .unwrap_or(false)
-                {
-                    hits += 1;
-                }
-            }
-            hits as f64 >= ARM_INSIDE_FRACTION * ARM_SAMPLES as f64
-        };
-        let mut theta = ARM_ANGLE_RANGE.1;
-        let mut run: Option<(f64, f64)> = None;
-        while theta >= ARM_ANGLE_RANGE.0 {
-            if inside(theta) {
-                run = Some(run.map_or((theta, theta), |r| (theta, r.1)));
-            } else if run.is_some() {
-                break;
-            }
-            theta -= ARM_ANGLE_STEP;
-        }
-        let (lo, hi) = run?;
-        if lo < ARM_ANGLE_RANGE.0 + ARM_ANGLE_STEP {
-            return None;
-        }
-        out[k] = 0.5 * (lo + hi);
-    }
-    Some((out[0], out[1]))
 }

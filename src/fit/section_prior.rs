@@ -191,6 +191,8 @@ fn solve_k(
 /// within `band`, so that the waist section's hull is [`WAIST_HULL_TO_ELLIPSE`] times
 /// its ellipse (see the module docs). Returns the push applied at the waist, or None
 /// where the waist section could not be gathered (then nothing is changed).
+// Index arithmetic over several arrays reads better with indices.
+#[allow(clippy::needless_range_loop)]
 pub fn reshape(
     band: &WaistBand,
     torso: &[u32],

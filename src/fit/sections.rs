@@ -701,6 +701,9 @@ impl SectionPlan {
     }
 }
 
+/// A point's coordinate along one axis (the view's depth or its across axis).
+type AxisCoord = fn(DVec3) -> f64;
+
 /// The edge a target stands for, along `axis`, at the depth of the candidate's rim `rim`
 /// (the depth the scale and shift are taken at). The target lies where the viewing ray
 /// from `eye` through the silhouette's edge meets the control vertex's depth, and a
@@ -715,7 +718,7 @@ fn at_rim_depth(axis: Axis, eye: Option<DVec3>, rim: DVec3, target: DVec3) -> f6
         return axis.of(target);
     };
     // The depth axis of the view: x for the side camera, z for the front one.
-    let (depth, across): (fn(DVec3) -> f64, fn(DVec3) -> f64) = match axis {
+    let (depth, across): (AxisCoord, AxisCoord) = match axis {
         Axis::Z => (|p: DVec3| p.x, |p: DVec3| p.z),
         Axis::X => (|p: DVec3| p.z, |p: DVec3| p.x),
     };

@@ -193,7 +193,7 @@ pub fn trunk_extents_at(
 ) -> Vec<Option<(f64, f64)>> {
     section_extents(positions, edges, labels, ys, is_trunk)
         .into_iter()
-        .map(|e| e.and_then(|(lo, hi)| (hi.x > lo.x).then(|| (hi.x - lo.x, hi.z - lo.z))))
+        .map(|e| e.and_then(|(lo, hi)| (hi.x > lo.x).then_some((hi.x - lo.x, hi.z - lo.z))))
         .collect()
 }
 

@@ -514,6 +514,8 @@ impl Renderer {
     }
 
     /// Renders a frame and the ground-truth mask (pixel centre inside a body).
+    // Index arithmetic over several arrays reads better with indices.
+    #[allow(clippy::needless_range_loop)]
     pub fn render(&self, people: &[Phantom], scene: &SceneParams) -> (RgbImage, Mask) {
         let i = self.camera.intrinsics;
         let (w, h) = (i.width as usize, i.height as usize);

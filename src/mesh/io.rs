@@ -650,7 +650,7 @@ pub fn write_glb(path: &Path, mesh: &TriMesh) -> Result<(), MeshIoError> {
             bin.extend_from_slice(&v.to_le_bytes());
         }
     }
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let nv = mesh.positions.len();

@@ -438,6 +438,8 @@ mod tests {
     }
 
     #[test]
+    // Index arithmetic over several arrays reads better with indices.
+    #[allow(clippy::needless_range_loop)]
     fn ring_order_is_counter_clockwise_from_outside() {
         let m = shapes::uv_sphere(1.0, 8, 16);
         let r = m.one_rings();

@@ -783,7 +783,7 @@ mod tests {
                 max_y: 48,
             },
             |x, y| {
-                let in_shirt = x >= 18.0 && x < 46.0 && y >= 14.0 && y < 42.0;
+                let in_shirt = (18.0..46.0).contains(&x) && (14.0..42.0).contains(&y);
                 let in_head = (24.0..40.0).contains(&x) && (2.0..18.0).contains(&y);
                 if in_shirt || in_head {
                     0.95

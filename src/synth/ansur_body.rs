@@ -1202,7 +1202,7 @@ mod tests {
     }
 
     fn arms_of(lib: &ShapeLibrary, table: &AnsurTable, seed: u64) {
-        let sex = if seed % 2 == 0 {
+        let sex = if seed.is_multiple_of(2) {
             Sex::Female
         } else {
             Sex::Male

@@ -59,7 +59,7 @@ pub(super) fn hands(
                     .total_cmp(&(mesh.positions[b] - end).length_squared())
             })
             .ok_or_else(|| BodyError::Prepare("no hand beyond the wrist".into()))?;
-        hands[k] = component(&adj, mesh, tip, |p| (p - wrist).dot(dir) > 0.0);
+        hands[k] = component(adj, mesh, tip, |p| (p - wrist).dot(dir) > 0.0);
     }
     Ok(hands)
 }
@@ -83,7 +83,7 @@ pub(super) fn feet(
             .filter(|&v| (mesh.positions[v].x - crotch_x) * s > 0.0)
             .min_by(|&a, &b| mesh.positions[a].y.total_cmp(&mesh.positions[b].y))
             .ok_or_else(|| BodyError::Prepare(format!("no {side:?} foot")))?;
-        feet[k] = component(&adj, mesh, low, |p| p.y < ay && (p.x - crotch_x) * s > 0.0);
+        feet[k] = component(adj, mesh, low, |p| p.y < ay && (p.x - crotch_x) * s > 0.0);
     }
     Ok(feet)
 }

@@ -588,7 +588,7 @@ pub(super) fn other_video_track(file: &File, size: u64) -> Option<(usize, u16, u
     };
     let (w, h) = (t.width(), t.height());
     let n = t.sample_count();
-    (n > 0 && u64::from(n) <= size && w > 0 && h > 0).then(|| (n as usize, w, h, codec))
+    (n > 0 && u64::from(n) <= size && w > 0 && h > 0).then_some((n as usize, w, h, codec))
 }
 
 /// A decoded picture as 8-bit RGB.
