@@ -412,16 +412,18 @@ impl RunLog {
     }
 }
 
-/// The final measurements as report.json's maps: values, stability, uncertainty (where
-/// known), and the names of the uncertain ones.
-fn measurement_maps(
-    proc_: &StationProcessor,
-) -> (
+/// report.json's measurement maps: values, stability, uncertainty, and the names of
+/// the uncertain ones.
+type MeasurementMaps = (
     serde_json::Map<String, serde_json::Value>,
     serde_json::Map<String, serde_json::Value>,
     serde_json::Map<String, serde_json::Value>,
     Vec<String>,
-) {
+);
+
+/// The final measurements as report.json's maps: values, stability, uncertainty (where
+/// known), and the names of the uncertain ones.
+fn measurement_maps(proc_: &StationProcessor) -> MeasurementMaps {
     let mut meas = serde_json::Map::new();
     let mut stab = serde_json::Map::new();
     let mut unc = serde_json::Map::new();
@@ -701,6 +703,36 @@ fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result
     Ok(())
 }
 
+/// Stages that run only because of the person network: the network on both views, the
+/// segmentation it is fused into, the side view's arms from its keypoints.
+const NETWORK_STAGES: [&str; 3] = ["person_mask", "silhouettes_fused", "side_limbs"];
+
+/// The person network's cost spread over the frame pairs showing the subject (its
+/// [`NETWORK_STAGES`] run on some pairs only); `None` when it never ran or nobody was
+/// seen.
+fn network_cost_line(
+    timings: &serde_json::Map<String, serde_json::Value>,
+    with_subject: Option<u64>,
+) -> Option<String> {
+    let pairs = with_subject.filter(|&n| n > 0)? as f64;
+    let net = timings.get("person_mask")?;
+    let spent = |stage: &str| {
+        timings.get(stage).map_or(0.0, |v| {
+            v["mean"].as_f64().unwrap_or(0.0) * v["count"].as_f64().unwrap_or(0.0)
+        })
+    };
+    let runs = net["count"].as_u64()?;
+    let total: f64 = NETWORK_STAGES.iter().map(|s| spent(s)).sum();
+    Some(format!(
+        "person network: ran on {runs} of {pairs} pairs with the subject, {:.2} ms a pair on \
+         average with its second segmentation and the side view's arms ({:.2} ms median, \
+         {:.2} p95 where it ran)",
+        total / pairs,
+        net["median"].as_f64().unwrap_or(0.0),
+        net["p95"].as_f64().unwrap_or(0.0),
+    ))
+}
+
 fn print_table(report: &serde_json::Value) {
     println!("{:<20} {:>10} {:>12}", "measurement", "mm", "stability");
     for k in MEASUREMENT_KEYS {
@@ -729,8 +761,36 @@ fn print_table(report: &serde_json::Value) {
             .map(|(k, v)| format!("{k} {:.2}", ms(v)))
             .collect();
         println!("median ms per frame pair: {}", parts.join(", "));
+        if let Some(line) = network_cost_line(t, report["frames"]["with_subject"].as_u64()) {
+            println!("{line}");
+        }
         if let Some(v) = t.get(ONCE_PER_RUN_STAGE) {
             println!("once per run: {ONCE_PER_RUN_STAGE} {:.2} ms", ms(v));
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn the_network_cost_is_spread_over_the_pairs_showing_the_subject() {
+        let t = serde_json::json!({
+            "silhouettes": {"median": 8.0, "p95": 9.0, "mean": 8.0, "count": 40},
+            "person_mask": {"median": 100.0, "p95": 120.0, "mean": 105.0, "count": 5},
+            "silhouettes_fused": {"median": 7.0, "p95": 8.0, "mean": 7.0, "count": 5},
+            "side_limbs": {"median": 50.0, "p95": 50.0, "mean": 50.0, "count": 2},
+        });
+        let t = t.as_object().expect("object");
+        let line = network_cost_line(t, Some(40)).expect("the network ran");
+        // (5 * 105 + 5 * 7 + 2 * 50) / 40 = 16.5 ms a pair.
+        assert!(line.contains("ran on 5 of 40 pairs"), "{line}");
+        assert!(line.contains("16.50 ms a pair on average"), "{line}");
+        assert!(line.contains("(100.00 ms median, 120.00 p95"), "{line}");
+        assert_eq!(network_cost_line(t, Some(0)), None);
+        let mut without = t.clone();
+        without.remove("person_mask");
+        assert_eq!(network_cost_line(&without, Some(40)), None);
     }
 }

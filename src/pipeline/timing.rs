@@ -1,4 +1,4 @@
-//! Per-stage timing: a stopwatch for one frame and running statistics (median, p95)
+//! Per-stage timing: a stopwatch for one frame and running statistics (median, p95, mean)
 //! over a run, as written to `report.json` under `timings_ms`.
 
 use std::collections::BTreeMap;
@@ -51,11 +51,15 @@ pub struct TimingStats {
     order: Vec<String>,
 }
 
-/// Median and 95th percentile of one stage, milliseconds.
+/// Median, 95th percentile and mean of one stage, milliseconds, over the `count` frames
+/// that ran it (a stage that runs on some frames only, as the person network, costs
+/// `mean * count / frames` a frame on average).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct StageSummary {
     pub median: f64,
     pub p95: f64,
+    pub mean: f64,
+    pub count: usize,
 }
 
 impl TimingStats {
@@ -81,6 +85,8 @@ impl TimingStats {
                     StageSummary {
                         median: percentile(v, 0.5),
                         p95: percentile(v, 0.95),
+                        mean: v.iter().sum::<f64>() / v.len().max(1) as f64,
+                        count: v.len(),
                     },
                 ))
             })
@@ -92,7 +98,12 @@ impl TimingStats {
         for (s, sum) in self.summary() {
             m.insert(
                 s,
-                serde_json::json!({"median": round3(sum.median), "p95": round3(sum.p95)}),
+                serde_json::json!({
+                    "median": round3(sum.median),
+                    "p95": round3(sum.p95),
+                    "mean": round3(sum.mean),
+                    "count": sum.count,
+                }),
             );
         }
         serde_json::Value::Object(m)
@@ -132,5 +143,10 @@ mod tests {
         assert_eq!(s[0].0, "segment");
         assert_eq!(s[0].1.median, 2.0);
         assert_eq!(s[0].1.p95, 4.0);
+        assert_eq!((s[0].1.mean, s[0].1.count), (3.0, 2));
+        assert_eq!((s[1].1.mean, s[1].1.count), (5.0, 1));
+        let j = t.to_json();
+        assert_eq!(j["segment"]["mean"], 3.0);
+        assert_eq!(j["segment"]["count"], 2);
     }
 }
