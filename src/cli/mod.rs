@@ -703,26 +703,25 @@ fn finish(summary: RunSummary, out: Option<&Path>, json: bool) -> anyhow::Result
     Ok(())
 }
 
-/// Stages that run only because of the person network: the network on both views, the
-/// segmentation it is fused into, the side view's arms from its keypoints.
-const NETWORK_STAGES: [&str; 3] = ["person_mask", "silhouettes_fused", "side_limbs"];
-
 /// The person network's cost spread over the frame pairs showing the subject (its
-/// [`NETWORK_STAGES`] run on some pairs only); `None` when it never ran or nobody was
+/// [`crate::station::NETWORK_STAGES`] run on some pairs only); `None` when it never ran or nobody was
 /// seen.
 fn network_cost_line(
     timings: &serde_json::Map<String, serde_json::Value>,
     with_subject: Option<u64>,
 ) -> Option<String> {
     let pairs = with_subject.filter(|&n| n > 0)? as f64;
-    let net = timings.get("person_mask")?;
+    let net = timings.get(crate::station::PERSON_MASK_STAGE)?;
     let spent = |stage: &str| {
         timings.get(stage).map_or(0.0, |v| {
             v["mean"].as_f64().unwrap_or(0.0) * v["count"].as_f64().unwrap_or(0.0)
         })
     };
     let runs = net["count"].as_u64()?;
-    let total: f64 = NETWORK_STAGES.iter().map(|s| spent(s)).sum();
+    let total: f64 = crate::station::NETWORK_STAGES
+        .iter()
+        .map(|s| spent(s))
+        .sum();
     Some(format!(
         "person network: ran on {runs} of {pairs} pairs with the subject, {:.2} ms a pair on \
          average with its second segmentation and the side view's arms ({:.2} ms median, \

@@ -56,9 +56,8 @@
 //! index of the triangles (listing only those near the heights a measurement cuts, from
 //! the thigh band under the lowest crotch searched to the armpit search's top: the head
 //! and lower legs, about half a body's triangles, are not indexed) and all section
-//! buffers between calls: each slice visits only
-//! the triangles near its level, and [`Measurer::measure_into`] allocates nothing once
-//! warm. Torso questions (crotch scan, torso grid, band refinements) cut only the loops
+//! buffers between calls: each slice visits only the triangles near its level, and
+//! [`Measurer::measure_into`] allocates nothing once warm. Torso questions (crotch scan, torso grid, band refinements) cut only the loops
 //! across the plane x = axis ([`slicer::SectionScratch::cut_across_x`]: the same loops,
 //! arms and hands skipped, and started only from the triangles spanning that plane, which
 //! the index lists per height bucket once the axis is known); the crotch scan skips,

@@ -46,7 +46,8 @@ pub struct LevelIndex {
     /// First and last bucket of each triangle ([`NOT_LISTED`]: outside the window).
     spans: Vec<(u32, u32)>,
     /// Heights whose sections find every triangle they cross (see
-    /// [`LevelIndex::rebuild_window`]); empty before the first build.
+    /// [`LevelIndex::rebuild_window`]); before the first build no bucket exists, so no
+    /// height finds anything.
     covered: (f64, f64),
     /// The triangle list the neighbours were built for.
     topology: Vec<[u32; 3]>,
@@ -145,10 +146,8 @@ impl LevelIndex {
         if self.topology != mesh.triangles {
             self.rebuild_neighbours(&mesh.triangles);
         }
-        let (y_min, y_max) = (
-            y_min.max(window.0),
-            y_max.min(window.1).max(y_min.max(window.0)),
-        );
+        let y_min = y_min.max(window.0);
+        let y_max = y_max.min(window.1).max(y_min);
         self.covered = (window.0 - RANGE_SLACK_M, window.1 + RANGE_SLACK_M);
         // A triangle within the range slack of a covered height may be cut there.
         let (keep_lo, keep_hi) = (y_min - 2.0 * RANGE_SLACK_M, y_max + 2.0 * RANGE_SLACK_M);

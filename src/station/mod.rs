@@ -35,6 +35,19 @@ use crate::silhouette::{SilhouetteExecutor, SilhouetteOptions, SilhouetteResult,
 use glam::{DVec2, DVec3};
 use std::sync::Arc;
 
+/// Timing stage of the learned person network on both views (run on some pairs only).
+pub const PERSON_MASK_STAGE: &str = "person_mask";
+/// Timing stage of the segmentation the network's map is fused into, on those pairs.
+pub const FUSED_SEGMENTATION_STAGE: &str = "silhouettes_fused";
+/// Timing stage of the side view's arms from the pose network, on the pairs it runs.
+pub const SIDE_LIMBS_STAGE: &str = "side_limbs";
+/// The stages that run only because of the person network.
+pub const NETWORK_STAGES: [&str; 3] = [
+    PERSON_MASK_STAGE,
+    FUSED_SEGMENTATION_STAGE,
+    SIDE_LIMBS_STAGE,
+];
+
 /// Measurement report keys in display order (`report.json` `measurements_mm`).
 pub const MEASUREMENT_KEYS: [&str; 6] = [
     "stature",
@@ -407,11 +420,11 @@ impl StationProcessor {
         let ran = self
             .person_masks
             .run(front, side, &self.calib, &mut self.silhouettes);
-        timer.lap("person_mask");
+        timer.lap(PERSON_MASK_STAGE);
         let mut fused = SilhouetteResult::empty();
         std::mem::swap(&mut fused, result);
         let again = self.silhouettes.process_into(front, side, &mut fused);
-        timer.lap("silhouettes_fused");
+        timer.lap(FUSED_SEGMENTATION_STAGE);
         match again {
             Ok(()) => *result = fused,
             Err(e) => {
@@ -611,7 +624,7 @@ impl StationProcessor {
             }
         };
         if network_runs {
-            timer.lap("side_limbs");
+            timer.lap(SIDE_LIMBS_STAGE);
         }
         arms
     }
