@@ -174,6 +174,7 @@ fn run(spec: Option<&str>, frames: usize) -> Run {
         }
         drop(ledger);
         let snap = station.process(&pair);
+        check_timings(&snap.timings_ms, pair.index);
         out.snaps.push(Snap {
             t: pair.timestamp_s,
             phase: snap.phase,
@@ -186,6 +187,33 @@ fn run(spec: Option<&str>, frames: usize) -> Run {
         });
     }
     out
+}
+
+/// A processed pair's `total` is the sum of every stage timed on the station's thread,
+/// from the fault screen that opens the pair to the screen's snapshot that closes it (a
+/// stage ending in `_part` is a share of another and not added).
+fn check_timings(timings: &[(String, f64)], index: u64) {
+    let Some(total) = timings.iter().find(|(k, _)| k == "total").map(|t| t.1) else {
+        return; // a skipped pair: no stages
+    };
+    let sum: f64 = timings
+        .iter()
+        .filter(|(k, _)| k != "total" && !k.ends_with("_part"))
+        .map(|t| t.1)
+        .sum();
+    assert!(
+        (total - sum).abs() < 1e-9,
+        "pair {index}: total {total} ms, stages add up to {sum} ({timings:?})"
+    );
+    for stage in [
+        fitstation::station::FAULT_SCREEN_STAGE,
+        fitstation::station::SCREEN_STAGE,
+    ] {
+        assert!(
+            timings.iter().any(|(k, _)| k == stage),
+            "pair {index}: no {stage} stage in {timings:?}"
+        );
+    }
 }
 
 /// The checks every fault must pass; `window` is the fault's `[start, end)` in seconds.

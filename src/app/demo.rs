@@ -376,8 +376,8 @@ impl FrameSource for DemoSource {
         Ok(Some(FramePair {
             index,
             timestamp_s: index as f64 / DEMO_FPS,
-            front,
-            side,
+            front: front.into(),
+            side: side.into(),
         }))
     }
 
@@ -563,11 +563,11 @@ impl FrameProcessor for DemoProcessor {
         let mut timer = FrameTimer::start();
         let index = pair.index;
         let mut snap = FitSnapshot::empty(index, Phase::WaitingForSubject);
-        snap.front_frame = Some(Arc::new(pair.front.clone()));
-        snap.side_frame = Some(Arc::new(pair.side.clone()));
+        snap.front_frame = Some(pair.front.clone());
+        snap.side_frame = Some(pair.side.clone());
         match act(index) {
             Act::Learn => {
-                self.backdrop = Some((pair.front.clone(), pair.side.clone()));
+                self.backdrop = Some(((*pair.front).clone(), (*pair.side).clone()));
                 snap.phase = Phase::LearningBackdrop;
                 snap.messages
                     .push("Learning the backdrop: keep the scene empty".into());
@@ -575,7 +575,7 @@ impl FrameProcessor for DemoProcessor {
             }
             Act::Empty | Act::Gone => {
                 if self.backdrop.is_none() {
-                    self.backdrop = Some((pair.front.clone(), pair.side.clone()));
+                    self.backdrop = Some(((*pair.front).clone(), (*pair.side).clone()));
                 }
                 timer.lap("segment");
             }
@@ -661,8 +661,8 @@ impl FrameProcessor for FramesOnlyProcessor {
         let mut snap = FitSnapshot::empty(pair.index, Phase::WaitingForSubject);
         snap.messages
             .push("No fit processor connected: showing frames only".into());
-        snap.front_frame = Some(Arc::new(pair.front.clone()));
-        snap.side_frame = Some(Arc::new(pair.side.clone()));
+        snap.front_frame = Some(pair.front.clone());
+        snap.side_frame = Some(pair.side.clone());
         snap
     }
 }

@@ -23,7 +23,6 @@ use crate::camera::StationCalibration;
 use crate::pipeline::{FitSnapshot, FramePair, FrameProcessor, Phase};
 use crate::station::{StationOptions, StationProcessor};
 use std::path::PathBuf;
-use std::sync::Arc;
 
 /// Frame pairs given to the cameras' automatic exposure before the backdrop is learnt
 /// (about a second at 30 fps).
@@ -108,8 +107,8 @@ impl<P: FrameProcessor> FrameProcessor for SettleFirst<P> {
                 "Cameras settling ({}/{}): keep the scene empty",
                 self.seen, self.settle
             ));
-            s.front_frame = Some(Arc::new(pair.front.clone()));
-            s.side_frame = Some(Arc::new(pair.side.clone()));
+            s.front_frame = Some(pair.front.clone());
+            s.side_frame = Some(pair.side.clone());
             return s;
         }
         self.inner.process(pair)
@@ -126,8 +125,8 @@ impl FrameProcessor for FramesWithMessage {
     fn process(&mut self, pair: &FramePair) -> FitSnapshot {
         let mut s = FitSnapshot::empty(pair.index, Phase::LearningBackdrop);
         s.messages.push(self.0.clone());
-        s.front_frame = Some(Arc::new(pair.front.clone()));
-        s.side_frame = Some(Arc::new(pair.side.clone()));
+        s.front_frame = Some(pair.front.clone());
+        s.side_frame = Some(pair.side.clone());
         s
     }
 }
@@ -272,8 +271,8 @@ mod tests {
         FramePair {
             index: i,
             timestamp_s: i as f64 / 30.0,
-            front: image::RgbImage::new(4, 4),
-            side: image::RgbImage::new(4, 4),
+            front: image::RgbImage::new(4, 4).into(),
+            side: image::RgbImage::new(4, 4).into(),
         }
     }
 

@@ -271,8 +271,8 @@ mod tests {
             rec.push(&FramePair {
                 index: 50 + i as u64,
                 timestamp_s: 0.0,
-                front: f,
-                side: s,
+                front: f.into(),
+                side: s.into(),
             });
         }
         let n = rec.finish().expect("finish");

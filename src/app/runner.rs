@@ -425,8 +425,8 @@ mod tests {
             Ok(Some(FramePair {
                 index: self.n - 1,
                 timestamp_s: 0.0,
-                front: img.clone(),
-                side: img,
+                front: img.clone().into(),
+                side: img.into(),
             }))
         }
         fn calibration(&self) -> Option<&StationCalibration> {
@@ -517,8 +517,8 @@ mod tests {
     impl FrameProcessor for WithFrames {
         fn process(&mut self, pair: &FramePair) -> FitSnapshot {
             let mut s = FitSnapshot::empty(pair.index, Phase::WaitingForSubject);
-            s.front_frame = Some(Arc::new(pair.front.clone()));
-            s.side_frame = Some(Arc::new(pair.side.clone()));
+            s.front_frame = Some(pair.front.clone());
+            s.side_frame = Some(pair.side.clone());
             s
         }
     }
@@ -530,8 +530,8 @@ mod tests {
             Ok(Some(FramePair {
                 index: self.0,
                 timestamp_s: 0.0,
-                front: image::RgbImage::from_pixel(1280, 720, image::Rgb([10, 20, 30])),
-                side: image::RgbImage::from_pixel(720, 1280, image::Rgb([40, 50, 60])),
+                front: image::RgbImage::from_pixel(1280, 720, image::Rgb([10, 20, 30])).into(),
+                side: image::RgbImage::from_pixel(720, 1280, image::Rgb([40, 50, 60])).into(),
             }))
         }
         fn calibration(&self) -> Option<&StationCalibration> {

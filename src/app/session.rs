@@ -254,8 +254,8 @@ impl FrameSource for SessionSource {
             let pair = FramePair {
                 index,
                 timestamp_s: index as f64 / self.fps,
-                front: (**f).clone(),
-                side: (**s).clone(),
+                front: (**f).clone().into(),
+                side: (**s).clone().into(),
             };
             self.given += 1;
             return Ok(Some(pair));

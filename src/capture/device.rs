@@ -221,8 +221,8 @@ impl FrameSource for DevicePairSource {
                         return Ok(Some(FramePair {
                             index,
                             timestamp_s: f.t_s,
-                            front: f.image,
-                            side: RgbImage::new(0, 0),
+                            front: f.image.into(),
+                            side: RgbImage::new(0, 0).into(),
                         }));
                     }
                     match f.view {
@@ -235,8 +235,8 @@ impl FrameSource for DevicePairSource {
                         return Ok(Some(FramePair {
                             index,
                             timestamp_s: m.timestamp_s,
-                            front: m.front,
-                            side: m.side,
+                            front: m.front.into(),
+                            side: m.side.into(),
                         }));
                     }
                 }

@@ -35,6 +35,7 @@ use crate::pipeline::{FramePair, FrameSource, SourceError};
 use crate::synth::rng::SplitMix64;
 use image::RgbImage;
 use std::collections::VecDeque;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// Brightness gain of an `exposure` fault without `=GAIN`: well outside the exposure
@@ -381,20 +382,20 @@ impl FaultInjector {
             self.matcher.clear();
             let index = self.formed;
             self.formed += 1;
-            let front = self.damage(View::Front, pair.front, active);
+            let front = self.damage(View::Front, Arc::unwrap_or_clone(pair.front), active);
             return Ok(Some(FramePair {
                 index,
                 timestamp_s: t,
-                front,
-                side: RgbImage::new(0, 0),
+                front: front.into(),
+                side: RgbImage::new(0, 0).into(),
             }));
         }
         if !dropped(View::Front) {
-            let f = self.damage(View::Front, pair.front, active);
+            let f = self.damage(View::Front, Arc::unwrap_or_clone(pair.front), active);
             self.matcher.push_front(t, f);
         }
         if !dropped(View::Side) {
-            let s = self.damage(View::Side, pair.side, active);
+            let s = self.damage(View::Side, Arc::unwrap_or_clone(pair.side), active);
             self.matcher.push_side(t, s);
         }
         match self.matcher.pop_pair() {
@@ -406,8 +407,8 @@ impl FaultInjector {
                 Ok(Some(FramePair {
                     index,
                     timestamp_s: m.timestamp_s,
-                    front: m.front,
-                    side: m.side,
+                    front: m.front.into(),
+                    side: m.side.into(),
                 }))
             }
             None => {
@@ -544,8 +545,8 @@ mod tests {
             Ok(Some(FramePair {
                 index: k,
                 timestamp_s: k as f64 * 0.1,
-                front: img.clone(),
-                side: img,
+                front: img.clone().into(),
+                side: img.into(),
             }))
         }
         fn calibration(&self) -> Option<&StationCalibration> {

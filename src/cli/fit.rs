@@ -54,14 +54,14 @@ pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
             FramePair {
                 index: 0,
                 timestamp_s: 0.0,
-                front: fb,
-                side: none(),
+                front: fb.into(),
+                side: none().into(),
             },
             FramePair {
                 index: 1,
                 timestamp_s: 0.0,
-                front,
-                side: none(),
+                front: front.into(),
+                side: none().into(),
             },
         ];
         let mut proc_ = StationProcessor::new(calib, default_library()?, opts)?;
@@ -80,14 +80,14 @@ pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
                 FramePair {
                     index: 0,
                     timestamp_s: 0.0,
-                    front: load_rgb(fb)?,
-                    side: load_rgb(sb)?,
+                    front: load_rgb(fb)?.into(),
+                    side: load_rgb(sb)?.into(),
                 },
                 FramePair {
                     index: 1,
                     timestamp_s: 0.0,
-                    front,
-                    side,
+                    front: front.into(),
+                    side: side.into(),
                 },
             ]
         }
@@ -103,14 +103,14 @@ pub fn run_fit(args: &FitArgs) -> anyhow::Result<()> {
                 FramePair {
                     index: 0,
                     timestamp_s: 0.0,
-                    front: fb,
-                    side: sb,
+                    front: fb.into(),
+                    side: sb.into(),
                 },
                 FramePair {
                     index: 1,
                     timestamp_s: 0.0,
-                    front,
-                    side,
+                    front: front.into(),
+                    side: side.into(),
                 },
             ]
         }

@@ -261,8 +261,8 @@ impl FrameSource for RecordingSource {
             Ok((front, side)) => Ok(Some(FramePair {
                 index,
                 timestamp_s: index as f64 / fps,
-                front,
-                side,
+                front: front.into(),
+                side: side.into(),
             })),
             Err(e) => Err(SourceError::Skipped(format!("frame {k}: {e}"))),
         }

@@ -25,11 +25,12 @@ pub struct FramePair {
     pub index: u64,
     /// Capture time in seconds from the start of the source.
     pub timestamp_s: f64,
-    pub front: RgbImage,
+    /// The frames are shared, not copied, with the screen's snapshot of this pair.
+    pub front: Arc<RgbImage>,
     /// The side frame; an empty (0 x 0) image when the side camera gave nothing for this
     /// moment (lost, or a recording whose side folder stops early): the station then fits
     /// from the front view alone ([`FramePair::has_side`]).
-    pub side: RgbImage,
+    pub side: Arc<RgbImage>,
 }
 
 impl FramePair {

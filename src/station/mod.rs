@@ -41,6 +41,11 @@ pub const PERSON_MASK_STAGE: &str = "person_mask";
 pub const FUSED_SEGMENTATION_STAGE: &str = "silhouettes_fused";
 /// Timing stage of the side view's arms from the pose network, on the pairs it runs.
 pub const SIDE_LIMBS_STAGE: &str = "side_limbs";
+/// Timing stage of the source fault checks that open every pair (`faults`).
+pub const FAULT_SCREEN_STAGE: &str = "fault_screen";
+/// Timing stage closing every processed pair: the snapshot's overlays for the screen
+/// (the avatar's outline in both views), the frames handed to it, the last good result.
+pub const SCREEN_STAGE: &str = "screen";
 /// The stages that run only because of the person network.
 pub const NETWORK_STAGES: [&str; 3] = [
     PERSON_MASK_STAGE,
@@ -308,13 +313,13 @@ impl StationProcessor {
         timer: &mut FrameTimer,
         no_frame: &image::RgbImage,
     ) -> FitSnapshot {
-        let side_frame = if self.opts.views == ViewSet::Both && pair.has_side() {
+        let side_frame: &image::RgbImage = if self.opts.views == ViewSet::Both && pair.has_side() {
             &pair.side
         } else {
             no_frame
         };
         for (view, img) in [
-            (crate::camera::View::Front, &pair.front),
+            (crate::camera::View::Front, &*pair.front),
             (crate::camera::View::Side, side_frame),
         ] {
             if view == crate::camera::View::Side && !crate::pipeline::has_frame(img) {
@@ -723,16 +728,27 @@ impl StationProcessor {
 
 impl FrameProcessor for StationProcessor {
     fn process(&mut self, pair: &FramePair) -> FitSnapshot {
+        // Every stage of the pair on this thread is timed, so that `total` is the pair's
+        // whole cost here (but for the engineer's `--masks-out` files, written after).
+        let mut timer = FrameTimer::start();
         // A faulty pair is said and skipped, keeping the last good result (`faults`).
         let notes = match self.screen_faults(pair) {
             Ok(notes) => notes,
             Err(s) => return *s,
         };
-        let mut timer = FrameTimer::start();
+        timer.lap(FAULT_SCREEN_STAGE);
         let mut s = self.process_inner(pair, &mut timer);
+        // The screen shows the frames the overlays belong to (kept in memory only).
+        s.front_frame = Some(pair.front.clone());
+        s.side_frame = Some(pair.side.clone());
+        self.after_screened(&mut s, notes);
+        // The snapshot's overlays (the avatar's outline in both views), the frames for
+        // the screen and the last good result kept for a fault.
+        timer.lap(SCREEN_STAGE);
         let total: f64 = timer.stages().iter().map(|(_, ms)| ms).sum();
-        s.timings_ms = timer.into_stages();
-        s.timings_ms.push(("total".into(), total));
+        let mut stages = timer.into_stages();
+        stages.push(("total".into(), total));
+        s.timings_ms = stages;
         if self.opts.person_model && s.phase != Phase::LearningBackdrop {
             // Part of `silhouettes` (not added to the total): the pass of both views'
             // segmentation that fuses the person mask in.
@@ -748,10 +764,6 @@ impl FrameProcessor for StationProcessor {
                 }
             }
         }
-        // The screen shows the frames the overlays belong to (kept in memory only).
-        s.front_frame = Some(Arc::new(pair.front.clone()));
-        s.side_frame = Some(Arc::new(pair.side.clone()));
-        self.after_screened(&mut s, notes);
         s
     }
 
