@@ -100,4 +100,4 @@ fn run_session_cli(args: &DemoUiArgs, rec: &Path) -> anyhow::Result<()> {
 }
 
 /// Frames before a screenshot when only --screenshot is given.
-const DEFAULT_SCREENSHOT_FRAMES: u64 = 150;
+pub(crate) const DEFAULT_SCREENSHOT_FRAMES: u64 = 150;

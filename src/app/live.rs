@@ -231,7 +231,7 @@ pub fn run_live_cli(args: LiveArgs) -> anyhow::Result<()> {
             exit_after_frames: args.exit_after_frames.or(args
                 .screenshot
                 .as_ref()
-                .map(|_| super::DEFAULT_SCREENSHOT_FRAMES)),
+                .map(|_| super::demo_ui::DEFAULT_SCREENSHOT_FRAMES)),
             screenshot: args.screenshot.clone(),
             on_backdrop_learned: Some(Box::new(move || locks.request_lock())),
             wizard,
