@@ -175,6 +175,14 @@ fn run(spec: Option<&str>, frames: usize) -> Run {
         drop(ledger);
         let snap = station.process(&pair);
         check_timings(&snap.timings_ms, pair.index);
+        // A fitted pair gives the screen what it needs to draw the avatar's outline (not
+        // while the backdrop is learnt again, which keeps the last avatar on screen).
+        if let (Some(av), false) = (&snap.avatar, snap.phase == Phase::LearningBackdrop) {
+            for o in [&snap.front, &snap.side] {
+                let cam = o.camera.as_ref().expect("the view's camera for the outline");
+                assert!(fitstation::pipeline::avatar_outline(av, cam).len() > 20);
+            }
+        }
         out.snaps.push(Snap {
             t: pair.timestamp_s,
             phase: snap.phase,

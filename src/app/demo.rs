@@ -554,6 +554,7 @@ impl DemoProcessor {
             landmarks,
             bones,
             avatar_outline,
+            camera: None,
         }
     }
 }

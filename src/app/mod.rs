@@ -244,6 +244,9 @@ struct Layout {
     avatar: Option<Rect>,
 }
 
+/// The avatar's outlines on the operator's screen: (frame index, avatar), front and side.
+type OutlineCache = ((u64, Option<usize>), [Vec<glam::DVec2>; 2]);
+
 struct StationApp {
     runner: Runner,
     describe: String,
@@ -258,6 +261,9 @@ struct StationApp {
     /// Size of each camera view on screen at the last frame (pixels).
     view_px: Option<[f32; 2]>,
     avatar_generation: u64,
+    /// The avatar's outline in the front and side views for the operator's screen, and
+    /// the snapshot (frame index, avatar) it belongs to ([`StationApp::refresh_outlines`]).
+    outlines: Option<OutlineCache>,
     /// The avatar drawn in the 3-D view (the newest fit, at most every
     /// [`AVATAR_PERIOD_S`]) and when it was taken.
     shown_avatar: Option<Arc<crate::mesh::TriMesh>>,
@@ -371,6 +377,7 @@ impl StationApp {
             side_tex: None,
             view_px: None,
             avatar_generation: 0,
+            outlines: None,
             shown_avatar: None,
             avatar_shown_s: f64::NEG_INFINITY,
             orbit: OrbitCamera::default(),

@@ -46,13 +46,21 @@ impl StationApp {
             }
         }
         let show_all = self.mode == Mode::Operator;
+        if show_all {
+            self.refresh_outlines();
+        }
         let snap = self.current.as_ref();
+        let outline = |k: usize| match &self.outlines {
+            Some((_, o)) if show_all => o[k].as_slice(),
+            _ => &[],
+        };
         self.layout.front = draw_view(
             &painter,
             cols[0],
             "front",
             self.front_tex.as_ref(),
             snap.map(|s| &s.front),
+            outline(0),
             &self.wizard_view.detections.front,
             show_all,
         );
@@ -62,6 +70,7 @@ impl StationApp {
             "side",
             self.side_tex.as_ref(),
             snap.map(|s| &s.side),
+            outline(1),
             &self.wizard_view.detections.side,
             show_all,
         );
@@ -87,6 +96,26 @@ impl StationApp {
                 Color32::from_rgb(150, 200, 255),
             );
         }
+    }
+
+    /// The avatar's outline in each view for the operator's screen, once per snapshot:
+    /// the processor's when it drew one, else the snapshot's avatar projected here by
+    /// the view's camera (so the fitting thread does not project it every pair).
+    fn refresh_outlines(&mut self) {
+        let Some(s) = self.current.as_ref() else {
+            self.outlines = None;
+            return;
+        };
+        let key = (s.frame_index, s.avatar.as_ref().map(|a| Arc::as_ptr(a) as usize));
+        if self.outlines.as_ref().is_some_and(|(k, _)| *k == key) {
+            return;
+        }
+        let one = |o: &ViewOverlay| match (&s.avatar, &o.camera) {
+            _ if !o.avatar_outline.is_empty() => o.avatar_outline.clone(),
+            (Some(av), Some(cam)) => crate::pipeline::avatar_outline(av, cam),
+            _ => Vec::new(),
+        };
+        self.outlines = Some((key, [one(&s.front), one(&s.side)]));
     }
 
     /// Turns and zooms the avatar's orbit camera by dragging and scrolling over its view;
@@ -248,12 +277,15 @@ impl StationApp {
 }
 
 /// Draws one camera view fitted into `area` with its overlays; returns the image rect.
+// One call per camera view with what that view shows; a struct would only rename them.
+#[allow(clippy::too_many_arguments)]
 fn draw_view(
     painter: &egui::Painter,
     area: Rect,
     name: &str,
     tex: Option<&ViewTexture>,
     overlay: Option<&ViewOverlay>,
+    avatar_outline: &[glam::DVec2],
     boards: &[operator::BoardDetection],
     operator: bool,
 ) -> Option<Rect> {
@@ -301,8 +333,8 @@ fn draw_view(
                     painter.circle_filled(p, 2.0, c);
                 }
             }
-            if o.avatar_outline.len() > 2 {
-                let pts = screen_polyline(o.avatar_outline.iter().map(|p| to_screen(*p)));
+            if avatar_outline.len() > 2 {
+                let pts = screen_polyline(avatar_outline.iter().map(|p| to_screen(*p)));
                 painter.add(egui::Shape::closed_line(
                     pts,
                     Stroke::new(1.0, AVATAR_OUTLINE_COLOUR),

@@ -122,8 +122,43 @@ pub struct ViewOverlay {
     pub landmarks: Vec<(String, DVec2)>,
     /// Skeleton bones as pixel segments.
     pub bones: Vec<(DVec2, DVec2)>,
-    /// The fitted avatar's projected silhouette outline, when there is a fit.
+    /// The fitted avatar's projected silhouette outline, when the processor drew it.
     pub avatar_outline: Vec<DVec2>,
+    /// This view's camera, when the avatar's outline is left to the screen: it draws
+    /// [`avatar_outline`] of the snapshot's avatar only where an operator looks at it,
+    /// on its own thread, instead of the fitting thread projecting it every pair.
+    pub camera: Option<crate::camera::Camera>,
+}
+
+/// The outline of `av` as `cam` sees it, for the screen: per band of 6 pixel rows its
+/// leftmost and rightmost projected vertex, down the left side and up the right side.
+pub fn avatar_outline(av: &TriMesh, cam: &crate::camera::Camera) -> Vec<DVec2> {
+    const BAND_PX: f64 = 6.0;
+    let proj: Vec<DVec2> = av
+        .positions
+        .iter()
+        .filter_map(|p| cam.project(*p))
+        .collect();
+    if proj.is_empty() {
+        return Vec::new();
+    }
+    let miny = proj.iter().map(|p| p.y).fold(f64::MAX, f64::min);
+    let maxy = proj.iter().map(|p| p.y).fold(f64::MIN, f64::max);
+    let n = (((maxy - miny) / BAND_PX).ceil() as usize).clamp(1, 2000);
+    let mut lo = vec![DVec2::splat(f64::MAX); n];
+    let mut hi = vec![DVec2::splat(f64::MIN); n];
+    for p in &proj {
+        let k = (((p.y - miny) / BAND_PX) as usize).min(n - 1);
+        if p.x < lo[k].x {
+            lo[k] = *p;
+        }
+        if p.x > hi[k].x {
+            hi[k] = *p;
+        }
+    }
+    let mut out: Vec<DVec2> = lo.into_iter().filter(|p| p.x < f64::MAX).collect();
+    out.extend(hi.into_iter().rev().filter(|p| p.x > f64::MIN));
+    out
 }
 
 /// What processing one frame pair produced: everything the screen and reports show.
@@ -254,6 +289,40 @@ impl<T> LatestSlot<T> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A sphere on the mark seen by the nominal front camera: the outline goes down its
+    /// left side and up its right, and spans the sphere's projected width and height.
+    #[test]
+    fn avatar_outline_follows_the_projected_sides() {
+        let cal = StationCalibration::nominal(720, 1280, 1100.0, 3.0, 1.1, 1.0);
+        let mut ball = crate::mesh::shapes::uv_sphere(0.3, 24, 48);
+        for p in &mut ball.positions {
+            p.y += 1.0;
+        }
+        let out = avatar_outline(&ball, &cal.front);
+        let proj: Vec<DVec2> = ball
+            .positions
+            .iter()
+            .filter_map(|p| cal.front.project(*p))
+            .collect();
+        let (x0, x1) = proj
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.x), b.max(p.x)));
+        let (y0, y1) = proj
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.y), b.max(p.y)));
+        let (ox0, ox1) = out
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.x), b.max(p.x)));
+        assert_eq!((ox0, ox1), (x0, x1), "the outline reaches both sides");
+        let n = out.len() / 2;
+        assert!(out[..n].windows(2).all(|w| w[1].y >= w[0].y - 1e-9), "left side goes down");
+        assert!(out[n..].windows(2).all(|w| w[1].y <= w[0].y + 1e-9), "right side goes up");
+        assert!(out[0].y - y0 < 6.0 && y1 - out[n - 1].y < 6.0);
+        // Every point lies on its band's side: none is inside the other side's x.
+        assert!(out[..n].iter().zip(out[n..].iter().rev()).all(|(l, r)| l.x <= r.x));
+        assert!(avatar_outline(&TriMesh::new(Vec::new(), Vec::new()), &cal.front).is_empty());
+    }
 
     #[test]
     fn newest_wins_and_drops_are_counted() {

@@ -716,10 +716,9 @@ impl StationProcessor {
                 .map(|p| (p.name.clone(), p.station))
                 .collect();
         }
-        if let Some(av) = &self.last_avatar {
-            s.front.avatar_outline = avatar_outline(av, &self.calib.front);
-            s.side.avatar_outline = avatar_outline(av, &self.calib.side);
-        }
+        // The avatar's outline is the screen's to draw (operator mode only).
+        s.front.camera = Some(self.calib.front);
+        s.side.camera = Some(self.calib.side);
         s.avatar = self.last_avatar.clone();
         s.measurements = self.measurements();
         s
@@ -856,6 +855,7 @@ fn overlay(a: &ViewAnalysis) -> ViewOverlay {
             .collect(),
         bones: bones(a),
         avatar_outline: Vec::new(),
+        camera: None,
     }
 }
 
@@ -883,35 +883,6 @@ fn bones(a: &ViewAnalysis) -> Vec<(DVec2, DVec2)> {
 /// The avatar's outline in a camera: projected boundary of its vertices' convex...
 /// approximated by the extreme projected vertex of each image row band (left and right
 /// sides), enough to show how the fit sits on the silhouette.
-fn avatar_outline(av: &TriMesh, cam: &crate::camera::Camera) -> Vec<DVec2> {
-    const BAND_PX: f64 = 6.0;
-    let proj: Vec<DVec2> = av
-        .positions
-        .iter()
-        .filter_map(|p| cam.project(*p))
-        .collect();
-    if proj.is_empty() {
-        return Vec::new();
-    }
-    let miny = proj.iter().map(|p| p.y).fold(f64::MAX, f64::min);
-    let maxy = proj.iter().map(|p| p.y).fold(f64::MIN, f64::max);
-    let n = (((maxy - miny) / BAND_PX).ceil() as usize).clamp(1, 2000);
-    let mut lo = vec![DVec2::splat(f64::MAX); n];
-    let mut hi = vec![DVec2::splat(f64::MIN); n];
-    for p in &proj {
-        let k = (((p.y - miny) / BAND_PX) as usize).min(n - 1);
-        if p.x < lo[k].x {
-            lo[k] = *p;
-        }
-        if p.x > hi[k].x {
-            hi[k] = *p;
-        }
-    }
-    let mut out: Vec<DVec2> = lo.into_iter().filter(|p| p.x < f64::MAX).collect();
-    out.extend(hi.into_iter().rev().filter(|p| p.x > f64::MIN));
-    out
-}
-
 /// Loads the default shape library (embedded in the binary).
 pub fn default_library() -> anyhow::Result<std::sync::Arc<crate::body::ShapeLibrary>> {
     use anyhow::Context;
