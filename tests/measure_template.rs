@@ -195,3 +195,77 @@ fn the_height_window_of_the_index_changes_nothing() {
         );
     }
 }
+
+/// The armpit search skips the grid heights between two critical heights of the mesh
+/// where a cut had fewer loops than arms apart need; a measurer that cuts every grid
+/// height must give every value, level and profile sample to the bit: on the template,
+/// on it taller and shorter, with its arms drawn in towards the trunk and spread, on
+/// library bodies from thin to heavy, and on the template with one triangle doubled
+/// (not a closed surface: nothing skipped).
+#[test]
+fn skipping_the_armpit_heights_between_critical_heights_changes_nothing() {
+    use fitstation::body::{ShapeLibrary, ShapeParams};
+    use fitstation::measure::Measurer;
+    let Some(mesh) = template() else { return };
+    let base = measure(&mesh).expect("template");
+    let axis = base.levels.axis_x_m;
+    let armpit = base.levels.armpit_m;
+    // Arms (beyond 0.16 m of the axis, above the hips) turned about the shoulder line
+    // towards the trunk or away from it, in the frontal plane.
+    let arms = |deg: f64| {
+        move |p: DVec3| {
+            let dx = p.x - axis;
+            if dx.abs() < 0.16 || p.y < armpit - 0.45 {
+                return p;
+            }
+            let pivot = DVec3::new(axis + dx.signum() * 0.16, armpit + 0.08, p.z);
+            let a = deg.to_radians() * dx.signum();
+            let (s, c) = a.sin_cos();
+            let r = p - pivot;
+            pivot + DVec3::new(c * r.x - s * r.y, s * r.x + c * r.y, r.z)
+        }
+    };
+    let mut bodies: Vec<(String, TriMesh)> = Vec::new();
+    for (name, map) in [
+        ("template", Box::new(|p| p) as Box<dyn Fn(DVec3) -> DVec3>),
+        ("0.9 tall", Box::new(|p| p * 0.9)),
+        ("1.1 tall", Box::new(|p| p * 1.1)),
+        ("arms in 6 deg", Box::new(arms(6.0))),
+        ("arms out 8 deg", Box::new(arms(-8.0))),
+    ] {
+        let mut m = mesh.clone();
+        m.map_positions(&*map);
+        bodies.push((name.into(), m));
+    }
+    let library = ShapeLibrary::shared().expect("the bundled shape library");
+    for (gender, weight, muscle) in [(0.0, 0.1, 0.3), (1.0, 0.95, 0.5), (0.3, 0.8, 0.9), (0.8, 0.3, 0.1)] {
+        let p = ShapeParams {
+            gender,
+            weight,
+            muscle,
+            ..ShapeParams::default()
+        };
+        bodies.push((format!("library {p:?}"), library.body(&p)));
+    }
+    let mut doubled = mesh.clone();
+    doubled.triangles.push(doubled.triangles[0]);
+    bodies.push(("a triangle doubled".into(), doubled));
+    for (name, m) in &bodies {
+        let skipping = Measurer::new().measure(m);
+        let cutting = Measurer::cutting_every_armpit_height().measure(m);
+        match (skipping, cutting) {
+            (Ok(a), Ok(b)) => {
+                let (d, key) = largest_change(&a, &b);
+                assert!(
+                    a == b,
+                    "{name}: skipping measures otherwise (largest change {d:.3} mm, {key}; \
+                     armpit {} against {})",
+                    a.levels.armpit_m,
+                    b.levels.armpit_m
+                );
+                println!("{name}: armpit {:.4} m, chest {:.1} mm", a.levels.armpit_m, a.chest_girth_mm);
+            }
+            (a, b) => assert_eq!(a.err(), b.err(), "{name}: one failed"),
+        }
+    }
+}

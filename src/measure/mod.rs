@@ -337,6 +337,30 @@ fn lowest_across_plane_x(mesh: &TriMesh, axis_x: f64) -> f64 {
     lowest
 }
 
+/// Heights this close to a critical height are cut, never skipped: a section counts a
+/// vertex within `ON_PLANE_EPS_M` of its plane as on it, so its loops there may be those
+/// of the other side.
+pub const CRITICAL_TIE_M: f64 = 1e-9;
+
+/// The critical heights of the armpit search are taken this far beyond its ends (well
+/// above [`CRITICAL_TIE_M`], well inside the height index's margin).
+const CRITICAL_RANGE_MARGIN_M: f64 = 1e-6;
+
+/// The highest height below which the grid heights under `y` (down to it, exclusive)
+/// have the loops of `y`: the highest critical height below `y`, raised by the tie
+/// margin; `y` itself (nothing known) when a critical height lies within the margin.
+fn lower_critical(critical: &[f64], y: f64) -> f64 {
+    // Sorted: the first at or above y - tie.
+    let k = critical.partition_point(|&c| c < y - CRITICAL_TIE_M);
+    if critical.get(k).is_some_and(|&c| c <= y + CRITICAL_TIE_M) {
+        return y;
+    }
+    match k.checked_sub(1) {
+        Some(j) => critical[j] + CRITICAL_TIE_M,
+        None => f64::NEG_INFINITY,
+    }
+}
+
 /// Measurement executor: owns the triangle height index and the section buffers, so
 /// measuring a fitted body every frame allocates only the result.
 #[derive(Debug, Clone, Default)]
@@ -350,11 +374,33 @@ pub struct Measurer {
     loaded: bool,
     y_min: f64,
     y_max: f64,
+    /// The armpit search cuts every grid height unless told the loops' critical heights
+    /// ([`Measurer::find_armpit`]); tests compare both.
+    cut_every_armpit_height: bool,
+    critical: CriticalScratch,
+}
+
+/// Buffers of [`LevelIndex::critical_heights`].
+#[derive(Debug, Clone, Default)]
+struct CriticalScratch {
+    marks: Vec<u16>,
+    seen: Vec<u32>,
+    heights: Vec<f64>,
 }
 
 impl Measurer {
     pub fn new() -> Self {
         Self::default()
+    }
+
+    /// A measurer whose armpit search cuts every grid height, without skipping those
+    /// between two critical heights where the loops cannot have the arms apart: the
+    /// same values, slower (for tests that check exactly that).
+    pub fn cutting_every_armpit_height() -> Self {
+        Measurer {
+            cut_every_armpit_height: true,
+            ..Self::default()
+        }
     }
 
     /// Checks the mesh and rebuilds the height index for it, unless it is the mesh the
@@ -657,13 +703,36 @@ impl Measurer {
     /// Armpit: the highest grid height from [`ARMPIT_SEARCH_TOP_OF_STATURE`] S down to
     /// [`ARMPIT_SEARCH_BOTTOM_OF_STATURE`] S where both arms are apart from the torso,
     /// then bisected against the grid height above it.
+    ///
+    /// Arms apart need at least three loops (a torso and one arm on each side). Where a
+    /// cut has fewer, every grid height down to the next critical height below it has as
+    /// few ([`LevelIndex::critical_heights`]: the loops change only there), and is not
+    /// cut. Heights within [`CRITICAL_TIE_M`] of a critical height are always cut.
     fn find_armpit(&mut self, mesh: &TriMesh, axis_x: f64) -> Result<f64, MeasureError> {
         let top = self.at_stature(ARMPIT_SEARCH_TOP_OF_STATURE);
         let bottom = self.at_stature(ARMPIT_SEARCH_BOTTOM_OF_STATURE);
         let n = ((top - bottom) / GRID_STEP_M + HEIGHT_EPS_M).floor() as usize;
+        let crit = &mut self.critical;
+        let critical = !self.cut_every_armpit_height
+            && self.index.critical_heights(
+                mesh,
+                bottom - CRITICAL_RANGE_MARGIN_M,
+                top + CRITICAL_RANGE_MARGIN_M,
+                &mut crit.marks,
+                &mut crit.seen,
+                &mut crit.heights,
+            );
+        // Grid heights above this one and below the last cut are known to lack the arms.
+        let mut known_down_to = f64::INFINITY;
         for k in 0..=n {
             let y = top - k as f64 * GRID_STEP_M;
+            if y > known_down_to {
+                continue;
+            }
             self.cut(mesh, y);
+            if critical && self.section.loops().len() < 3 {
+                known_down_to = lower_critical(&self.critical.heights, y);
+            }
             if self.arms_apart(axis_x) {
                 if k == 0 {
                     return Ok(y);

@@ -55,6 +55,10 @@ pub struct LevelIndex {
     /// `NO_NEIGHBOUR` on a boundary. At a non-manifold edge the triangles sharing it
     /// are linked in a cycle, which still puts them in one loop.
     neighbours: Vec<[u32; 3]>,
+    /// Whether the triangle list is a closed 2-manifold: every edge shared by exactly
+    /// two triangles and the triangles about every vertex one fan (see
+    /// [`LevelIndex::critical_heights`]).
+    closed_manifold: bool,
     /// Triangles around each vertex (compressed rows), to find edge neighbours.
     vertex_offsets: Vec<u32>,
     vertex_triangles: Vec<u32>,
@@ -298,6 +302,7 @@ impl LevelIndex {
             }
         }
         self.counts = cursor;
+        let mut edge_manifold = true;
         for (t, tri) in triangles.iter().enumerate() {
             for e in 0..3 {
                 let (a, b) = (tri[e], tri[(e + 1) % 3]);
@@ -305,19 +310,135 @@ impl LevelIndex {
                     &incident[offsets[a as usize] as usize..offsets[a as usize + 1] as usize];
                 // The triangles sharing edge a-b form a cycle in id order: the next
                 // larger id, else the smallest (the only other one on a manifold edge).
-                let (mut next, mut first) = (NO_NEIGHBOUR, NO_NEIGHBOUR);
+                let (mut next, mut first, mut sharing) = (NO_NEIGHBOUR, NO_NEIGHBOUR, 0);
                 for &u in around_a {
                     if u as usize == t || !triangles[u as usize].contains(&b) {
                         continue;
                     }
+                    sharing += 1;
                     first = first.min(u);
                     if u as usize > t {
                         next = next.min(u);
                     }
                 }
+                edge_manifold &= sharing == 1 && a != b;
                 self.neighbours[t][e] = if next != NO_NEIGHBOUR { next } else { first };
             }
         }
+        self.closed_manifold = edge_manifold && self.single_fans(triangles);
+    }
+
+    /// Whether the triangles about every vertex form a single fan (on a mesh whose
+    /// every edge has exactly two triangles): walking from one of them across the
+    /// edges at the vertex comes back after visiting all of them.
+    fn single_fans(&self, triangles: &[[u32; 3]]) -> bool {
+        let n_vertices = self.vertex_offsets.len().saturating_sub(1);
+        for v in 0..n_vertices as u32 {
+            let around = &self.vertex_triangles
+                [self.vertex_offsets[v as usize] as usize..self.vertex_offsets[v as usize + 1] as usize];
+            let Some(&start) = around.first() else {
+                continue;
+            };
+            let (mut t, mut steps) = (start, 0usize);
+            loop {
+                let tri = triangles[t as usize];
+                let Some(k) = tri.iter().position(|&u| u == v) else {
+                    return false;
+                };
+                if tri[(k + 1) % 3] == v || tri[(k + 2) % 3] == v {
+                    return false; // a degenerate triangle
+                }
+                // The edge from v to the next corner: edge k of the triangle.
+                t = self.neighbours[t as usize][k];
+                steps += 1;
+                if t == NO_NEIGHBOUR || steps > around.len() {
+                    return false;
+                }
+                if t == start {
+                    break;
+                }
+            }
+            if steps != around.len() {
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The heights, between `lo` and `hi`, of the vertices where the number of loops of
+    /// a section may change (sorted, each once), into `out`; false, leaving `out` empty,
+    /// unless the mesh is a closed 2-manifold and this index covers `lo..=hi`.
+    ///
+    /// On a closed triangulated surface the sections between two consecutive critical
+    /// heights of the height function are the same number of loops. Vertices are
+    /// ordered by (y, index), which breaks ties as a section does (a vertex on the plane
+    /// counts as above it). A vertex is regular when its link changes between below and
+    /// above it exactly twice; each triangle adds one such change to its middle vertex,
+    /// so a vertex is critical unless it is the middle vertex of exactly two of its
+    /// triangles (none: a lowest or highest point; four or more: a saddle, where loops
+    /// merge or split). `marks` is scratch, one entry per vertex.
+    pub fn critical_heights(
+        &self,
+        mesh: &TriMesh,
+        lo: f64,
+        hi: f64,
+        marks: &mut Vec<u16>,
+        seen: &mut Vec<u32>,
+        out: &mut Vec<f64>,
+    ) -> bool {
+        out.clear();
+        if !self.closed_manifold
+            || self.topology != mesh.triangles
+            || !(self.covers(lo) && self.covers(hi))
+            || self.offsets.len() != self.n_buckets + 1
+            || self.n_buckets == 0
+        {
+            return false;
+        }
+        const SEEN: u16 = 0x8000;
+        marks.clear();
+        marks.resize(mesh.positions.len(), 0);
+        seen.clear();
+        let y = |v: u32| mesh.positions[v as usize].y;
+        let below = |a: u32, b: u32| (y(a), a) < (y(b), b);
+        let (b_first, b_last) = (self.bucket(lo), self.bucket(hi));
+        for b in b_first..=b_last {
+            let (s, e) = (self.offsets[b] as usize, self.offsets[b + 1] as usize);
+            for entry in &self.entries[s..e] {
+                let t = entry.triangle;
+                // Each triangle once: in the first of its buckets this loop visits.
+                if (self.spans[t as usize].0 as usize).max(b_first) != b {
+                    continue;
+                }
+                let [p, q, r] = mesh.triangles[t as usize];
+                for v in [p, q, r] {
+                    let h = y(v);
+                    if h >= lo && h <= hi && marks[v as usize] & SEEN == 0 {
+                        marks[v as usize] |= SEEN;
+                        seen.push(v);
+                    }
+                }
+                let middle = if below(p, q) == below(q, r) {
+                    q
+                } else if below(q, r) == below(r, p) {
+                    r
+                } else {
+                    p
+                };
+                if marks[middle as usize] & SEEN != 0 {
+                    marks[middle as usize] = marks[middle as usize].saturating_add(1);
+                }
+            }
+        }
+        for &v in seen.iter() {
+            if marks[v as usize] & !SEEN != 2 {
+                out.push(y(v));
+            }
+            marks[v as usize] = 0;
+        }
+        out.sort_by(f64::total_cmp);
+        out.dedup();
+        true
     }
 
     fn bucket(&self, y: f64) -> usize {
@@ -975,6 +1096,41 @@ mod tests {
         a.triangles
             .extend(b.triangles.iter().map(|t| t.map(|v| v + off)));
         a
+    }
+
+    fn critical(mesh: &TriMesh, lo: f64, hi: f64) -> Option<Vec<f64>> {
+        let mut idx = LevelIndex::default();
+        let b = mesh.bounds().expect("non-empty test mesh");
+        idx.rebuild(mesh, b.min.y, b.max.y);
+        let (mut marks, mut seen, mut out) = (Vec::new(), Vec::new(), Vec::new());
+        idx.critical_heights(mesh, lo, hi, &mut marks, &mut seen, &mut out)
+            .then_some(out)
+    }
+
+    /// A sphere's only critical points are its poles (its rings are level, ties broken
+    /// by index); two spheres at other heights have four; a sphere with a hole has no
+    /// answer (not closed), nor heights outside the index.
+    #[test]
+    fn critical_heights_are_the_poles_of_spheres_and_none_on_an_open_mesh() {
+        let ball = shapes::uv_sphere(0.2, 12, 24);
+        let c = critical(&ball, -1.0, 1.0).expect("a sphere is closed");
+        assert_eq!(c, vec![-0.2, 0.2]);
+        assert_eq!(critical(&ball, 0.0, 0.1).expect("closed"), Vec::<f64>::new());
+        let two = beside(ball.clone(), &ball, DVec3::new(1.0, 0.05, 0.0));
+        let c = critical(&two, -1.0, 1.0).expect("two closed spheres");
+        assert_eq!(c, vec![-0.2, -0.2 + 0.05, 0.2, 0.2 + 0.05]);
+        // The number of loops changes exactly at those heights.
+        for (y, loops) in [(-0.17, 1), (0.0, 2), (0.22, 1)] {
+            assert_eq!(cut_all(&two, y).loops().len(), loops, "at {y}");
+        }
+        let mut open = ball.clone();
+        open.triangles.pop();
+        assert!(critical(&open, -1.0, 1.0).is_none());
+        let mut idx = LevelIndex::default();
+        idx.rebuild_window(&ball, -0.2, 0.2, (-0.05, 0.05));
+        let (mut marks, mut seen, mut out) = (Vec::new(), Vec::new(), Vec::new());
+        assert!(!idx.critical_heights(&ball, -0.1, 0.1, &mut marks, &mut seen, &mut out));
+        assert!(idx.critical_heights(&ball, -0.04, 0.04, &mut marks, &mut seen, &mut out));
     }
 
     #[test]
