@@ -83,12 +83,15 @@ fn bench(c: &mut Criterion) {
     });
     // The same, cutting every grid height of the armpit search (no critical heights).
     let mut cutting = Measurer::cutting_every_armpit_height();
-    c.bench_function(&format!("measure_per_frame_cut_every_armpit_height_{name}"), |b| {
-        b.iter(|| {
-            k += 1;
-            cutting.measure_into(black_box(&pair[k % 2]), &mut out)
-        })
-    });
+    c.bench_function(
+        &format!("measure_per_frame_cut_every_armpit_height_{name}"),
+        |b| {
+            b.iter(|| {
+                k += 1;
+                cutting.measure_into(black_box(&pair[k % 2]), &mut out)
+            })
+        },
+    );
     // The free function, per frame (its thread's cached Measurer).
     c.bench_function(&format!("measure_fn_per_frame_{name}"), |b| {
         b.iter(|| {

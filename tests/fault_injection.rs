@@ -179,7 +179,10 @@ fn run(spec: Option<&str>, frames: usize) -> Run {
         // while the backdrop is learnt again, which keeps the last avatar on screen).
         if let (Some(av), false) = (&snap.avatar, snap.phase == Phase::LearningBackdrop) {
             for o in [&snap.front, &snap.side] {
-                let cam = o.camera.as_ref().expect("the view's camera for the outline");
+                let cam = o
+                    .camera
+                    .as_ref()
+                    .expect("the view's camera for the outline");
                 assert!(fitstation::pipeline::avatar_outline(av, cam).len() > 20);
             }
         }

@@ -196,14 +196,16 @@ fn the_height_window_of_the_index_changes_nothing() {
     }
 }
 
-/// The armpit search skips the grid heights between two critical heights of the mesh
-/// where a cut had fewer loops than arms apart need; a measurer that cuts every grid
-/// height must give every value, level and profile sample to the bit: on the template,
+/// The short cuts a closed surface allows: the armpit search skips the grid heights
+/// between two critical heights of the mesh where a cut had fewer loops than arms apart
+/// need, and the torso samples walk their loops instead of cutting. A measurer that
+/// cuts every armpit grid height, and one that also cuts every torso sample, must give
+/// every value, level and profile sample to the bit: on the template,
 /// on it taller and shorter, with its arms drawn in towards the trunk and spread, on
 /// library bodies from thin to heavy, and on the template with one triangle doubled
 /// (not a closed surface: nothing skipped).
 #[test]
-fn skipping_the_armpit_heights_between_critical_heights_changes_nothing() {
+fn the_short_cuts_of_a_closed_surface_change_nothing() {
     use fitstation::body::{ShapeLibrary, ShapeParams};
     use fitstation::measure::Measurer;
     let Some(mesh) = template() else { return };
@@ -238,7 +240,12 @@ fn skipping_the_armpit_heights_between_critical_heights_changes_nothing() {
         bodies.push((name.into(), m));
     }
     let library = ShapeLibrary::shared().expect("the bundled shape library");
-    for (gender, weight, muscle) in [(0.0, 0.1, 0.3), (1.0, 0.95, 0.5), (0.3, 0.8, 0.9), (0.8, 0.3, 0.1)] {
+    for (gender, weight, muscle) in [
+        (0.0, 0.1, 0.3),
+        (1.0, 0.95, 0.5),
+        (0.3, 0.8, 0.9),
+        (0.8, 0.3, 0.1),
+    ] {
         let p = ShapeParams {
             gender,
             weight,
@@ -251,21 +258,33 @@ fn skipping_the_armpit_heights_between_critical_heights_changes_nothing() {
     doubled.triangles.push(doubled.triangles[0]);
     bodies.push(("a triangle doubled".into(), doubled));
     for (name, m) in &bodies {
-        let skipping = Measurer::new().measure(m);
-        let cutting = Measurer::cutting_every_armpit_height().measure(m);
-        match (skipping, cutting) {
-            (Ok(a), Ok(b)) => {
-                let (d, key) = largest_change(&a, &b);
-                assert!(
-                    a == b,
-                    "{name}: skipping measures otherwise (largest change {d:.3} mm, {key}; \
-                     armpit {} against {})",
-                    a.levels.armpit_m,
-                    b.levels.armpit_m
-                );
-                println!("{name}: armpit {:.4} m, chest {:.1} mm", a.levels.armpit_m, a.chest_girth_mm);
+        let short = Measurer::new().measure(m);
+        for (how, other) in [
+            (
+                "cutting every armpit height",
+                Measurer::cutting_every_armpit_height(),
+            ),
+            ("without short cuts", Measurer::without_short_cuts()),
+        ] {
+            match (&short, other.clone().measure(m)) {
+                (Ok(a), Ok(b)) => {
+                    let (d, key) = largest_change(a, &b);
+                    assert!(
+                        *a == b,
+                        "{name}: {how} measures otherwise (largest change {d:.3} mm, {key}; \
+                         armpit {} against {})",
+                        a.levels.armpit_m,
+                        b.levels.armpit_m
+                    );
+                }
+                (a, b) => assert_eq!(a.as_ref().err(), b.err().as_ref(), "{name}: one failed"),
             }
-            (a, b) => assert_eq!(a.err(), b.err(), "{name}: one failed"),
+        }
+        if let Ok(a) = &short {
+            println!(
+                "{name}: armpit {:.4} m, chest {:.1} mm",
+                a.levels.armpit_m, a.chest_girth_mm
+            );
         }
     }
 }

@@ -106,7 +106,10 @@ impl StationApp {
             self.outlines = None;
             return;
         };
-        let key = (s.frame_index, s.avatar.as_ref().map(|a| Arc::as_ptr(a) as usize));
+        let key = (
+            s.frame_index,
+            s.avatar.as_ref().map(|a| Arc::as_ptr(a) as usize),
+        );
         if self.outlines.as_ref().is_some_and(|(k, _)| *k == key) {
             return;
         }

@@ -334,12 +334,12 @@ impl LevelIndex {
     fn single_fans(&self, triangles: &[[u32; 3]]) -> bool {
         let n_vertices = self.vertex_offsets.len().saturating_sub(1);
         for v in 0..n_vertices as u32 {
-            let around = &self.vertex_triangles
-                [self.vertex_offsets[v as usize] as usize..self.vertex_offsets[v as usize + 1] as usize];
+            let around = &self.vertex_triangles[self.vertex_offsets[v as usize] as usize
+                ..self.vertex_offsets[v as usize + 1] as usize];
             let Some(&start) = around.first() else {
                 continue;
             };
-            let (mut t, mut steps) = (start, 0usize);
+            let (mut prev, mut t, mut steps) = (NO_NEIGHBOUR, start, 0usize);
             loop {
                 let tri = triangles[t as usize];
                 let Some(k) = tri.iter().position(|&u| u == v) else {
@@ -348,8 +348,14 @@ impl LevelIndex {
                 if tri[(k + 1) % 3] == v || tri[(k + 2) % 3] == v {
                     return false; // a degenerate triangle
                 }
-                // The edge from v to the next corner: edge k of the triangle.
-                t = self.neighbours[t as usize][k];
+                // Across the edge at v not come from (edges k and k + 2 hold v), so
+                // the walk needs no consistent orientation.
+                let (a, b) = (
+                    self.neighbours[t as usize][k],
+                    self.neighbours[t as usize][(k + 2) % 3],
+                );
+                let next = if a != prev { a } else { b };
+                (prev, t) = (t, next);
                 steps += 1;
                 if t == NO_NEIGHBOUR || steps > around.len() {
                     return false;
@@ -582,6 +588,58 @@ pub struct SectionScratch {
     loops: Vec<LoopInfo>,
     points: Vec<DVec2>,
     hull: Vec<DVec2>,
+    /// [`SectionScratch::trace_across_x`]: the traced loops' crossing points, loop by
+    /// loop in order around each, and each loop's range of them with its extents.
+    traced_points: Vec<DVec2>,
+    traced: Vec<LoopInfo>,
+}
+
+/// Height differences of a triangle's corners from the plane y, a corner within
+/// [`ON_PLANE_EPS_M`] of it counted just above (as [`triangle_segment`] does).
+#[inline(always)]
+fn plane_offsets(mesh: &TriMesh, t: [u32; 3], y: f64) -> [f64; 3] {
+    t.map(|v| {
+        let d = mesh.positions[v as usize].y - y;
+        if d.abs() < ON_PLANE_EPS_M {
+            ON_PLANE_EPS_M
+        } else {
+            d
+        }
+    })
+}
+
+/// The point where edge `e` of triangle `t` (corners e, e + 1; offsets `d`) crosses the
+/// plane, interpolated from the edge's lower-indexed vertex as [`triangle_segment`] does.
+#[inline(always)]
+fn edge_crossing(mesh: &TriMesh, t: [u32; 3], d: &[f64; 3], e: usize) -> DVec2 {
+    let (a, b) = (e, (e + 1) % 3);
+    let (lo, hi) = ordered(t[a], t[b]);
+    let (dl, dh) = if lo == t[a] {
+        (d[a], d[b])
+    } else {
+        (d[b], d[a])
+    };
+    let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
+    let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
+    DVec2::new(p.x, p.z)
+}
+
+/// The edges of a triangle with offsets `d` that cross the plane, in edge order (None
+/// unless exactly two do).
+#[inline(always)]
+fn crossed_edges(d: &[f64; 3]) -> Option<[usize; 2]> {
+    let mut out = [0usize; 2];
+    let mut k = 0;
+    for e in 0..3 {
+        if (d[e] > 0.0) != (d[(e + 1) % 3] > 0.0) {
+            if k == 2 {
+                return None;
+            }
+            out[k] = e;
+            k += 1;
+        }
+    }
+    (k == 2).then_some(out)
 }
 
 fn find(parent: &mut [u32], mut i: u32) -> u32 {
@@ -854,6 +912,90 @@ impl SectionScratch {
         }
     }
 
+    /// As [`SectionScratch::cut_across_x`] on a closed 2-manifold, faster: each loop
+    /// across the plane x = `axis_x` is walked from a triangle spanning that plane,
+    /// triangle to triangle across its crossed edges, listing each crossing point once
+    /// in order around the loop ([`SectionScratch::traced`],
+    /// [`SectionScratch::traced_hull`]). The loops, their order, extents and point sets
+    /// are those of `cut_across_x`. Returns false, with nothing traced, where the index
+    /// is not of a closed 2-manifold or a walk does not close (then cut instead).
+    pub fn trace_across_x(
+        &mut self,
+        mesh: &TriMesh,
+        index: &LevelIndex,
+        y: f64,
+        axis_x: f64,
+    ) -> bool {
+        self.traced.clear();
+        self.traced_points.clear();
+        // (As for every cut, `index` must have been built for this mesh.)
+        if !index.closed_manifold || index.neighbours.len() != mesh.triangles.len() {
+            return false;
+        }
+        self.begin(mesh);
+        let epoch = self.epoch;
+        for entry in index.entries_across_x(y, axis_x) {
+            let t0 = entry.triangle;
+            if !entry.may_cross(y) || self.seg_of_tri[t0 as usize].0 == epoch {
+                continue;
+            }
+            let tri0 = mesh.triangles[t0 as usize];
+            let d0 = plane_offsets(mesh, tri0, y);
+            let Some([_, first_out]) = crossed_edges(&d0) else {
+                continue;
+            };
+            self.seg_of_tri[t0 as usize].0 = epoch;
+            let start = self.traced_points.len() as u32;
+            let mut info = LoopInfo::empty(start, start);
+            let (mut t, mut tri, mut d, mut out) = (t0, tri0, d0, first_out);
+            loop {
+                let p = edge_crossing(mesh, tri, &d, out);
+                info.take_in(&[p, p]);
+                self.traced_points.push(p);
+                let (a, b) = (tri[out], tri[(out + 1) % 3]);
+                let next = index.neighbours[t as usize][out];
+                if next == t0 {
+                    break;
+                }
+                if next == NO_NEIGHBOUR || self.seg_of_tri[next as usize].0 == epoch {
+                    self.traced.clear();
+                    self.traced_points.clear();
+                    return false;
+                }
+                self.seg_of_tri[next as usize].0 = epoch;
+                let ntri = mesh.triangles[next as usize];
+                let nd = plane_offsets(mesh, ntri, y);
+                let Some(edges) = crossed_edges(&nd) else {
+                    self.traced.clear();
+                    self.traced_points.clear();
+                    return false;
+                };
+                // Leave by the crossed edge that is not the one shared with `t`.
+                let shared = |e: usize| {
+                    let (u, v) = (ntri[e], ntri[(e + 1) % 3]);
+                    (u == a && v == b) || (u == b && v == a)
+                };
+                out = if shared(edges[0]) { edges[1] } else { edges[0] };
+                (t, tri, d) = (next, ntri, nd);
+            }
+            info.seg_end = self.traced_points.len() as u32;
+            self.traced.push(info);
+        }
+        true
+    }
+
+    /// The loops of the last [`SectionScratch::trace_across_x`].
+    pub fn traced(&self) -> &[LoopInfo] {
+        &self.traced
+    }
+
+    /// Convex hull of traced loop `i`; `None` if it has fewer than 3 hull corners.
+    pub fn traced_hull(&mut self, i: usize) -> Option<HullStats> {
+        let info = *self.traced.get(i)?;
+        let pts = &mut self.traced_points[info.seg_start as usize..info.seg_end as usize];
+        hull_stats(pts, &mut self.hull)
+    }
+
     /// The loops of the last section.
     pub fn loops(&self) -> &[LoopInfo] {
         &self.loops
@@ -1115,7 +1257,10 @@ mod tests {
         let ball = shapes::uv_sphere(0.2, 12, 24);
         let c = critical(&ball, -1.0, 1.0).expect("a sphere is closed");
         assert_eq!(c, vec![-0.2, 0.2]);
-        assert_eq!(critical(&ball, 0.0, 0.1).expect("closed"), Vec::<f64>::new());
+        assert_eq!(
+            critical(&ball, 0.0, 0.1).expect("closed"),
+            Vec::<f64>::new()
+        );
         let two = beside(ball.clone(), &ball, DVec3::new(1.0, 0.05, 0.0));
         let c = critical(&two, -1.0, 1.0).expect("two closed spheres");
         assert_eq!(c, vec![-0.2, -0.2 + 0.05, 0.2, 0.2 + 0.05]);
@@ -1281,5 +1426,50 @@ mod tests {
             assert_eq!(across.loops().len(), 1);
             assert!((across.loops()[0].x_min - 0.26).abs() < 1e-9);
         }
+    }
+
+    /// Walking the loops across a plane gives the cut's loops: the same extents, the
+    /// same hulls to the bit, each crossing point once; not on an open mesh.
+    #[test]
+    fn traced_loops_equal_the_cut_loops() {
+        let ball = shapes::uv_sphere(0.2, 17, 31);
+        let m = beside(
+            shapes::elliptic_cylinder(0.15, 0.1, 1.0, 7, 48),
+            &ball,
+            DVec3::new(0.0, 0.5, 0.0),
+        );
+        let mut idx = LevelIndex::default();
+        idx.rebuild(&m, 0.0, 1.0);
+        let (mut cut, mut walk) = (SectionScratch::default(), SectionScratch::default());
+        for y in [0.05, 0.3337, 0.42, 0.5, 0.61, 0.91] {
+            for axis in [0.0, 0.01, -0.12] {
+                cut.cut_across_x(&m, &idx, y, axis);
+                assert!(walk.trace_across_x(&m, &idx, y, axis), "closed surfaces");
+                assert_eq!(
+                    walk.traced().len(),
+                    cut.loops().len(),
+                    "at {y}, axis {axis}"
+                );
+                for i in 0..cut.loops().len() {
+                    let (a, b) = (walk.traced()[i], cut.loops()[i]);
+                    assert_eq!(
+                        (a.x_min, a.x_max, a.z_min, a.z_max),
+                        (b.x_min, b.x_max, b.z_min, b.z_max)
+                    );
+                    assert_eq!(walk.traced_hull(i), cut.loop_hull(i));
+                    let n = (a.seg_end - a.seg_start) as usize;
+                    assert_eq!(
+                        n,
+                        (b.seg_end - b.seg_start) as usize,
+                        "one point per segment"
+                    );
+                }
+            }
+        }
+        let mut open = m.clone();
+        open.triangles.pop();
+        let mut idx = LevelIndex::default();
+        idx.rebuild(&open, 0.0, 1.0);
+        assert!(!walk.trace_across_x(&open, &idx, 0.5, 0.0));
     }
 }

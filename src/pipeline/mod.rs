@@ -316,11 +316,20 @@ mod tests {
             .fold((f64::MAX, f64::MIN), |(a, b), p| (a.min(p.x), b.max(p.x)));
         assert_eq!((ox0, ox1), (x0, x1), "the outline reaches both sides");
         let n = out.len() / 2;
-        assert!(out[..n].windows(2).all(|w| w[1].y >= w[0].y - 1e-9), "left side goes down");
-        assert!(out[n..].windows(2).all(|w| w[1].y <= w[0].y + 1e-9), "right side goes up");
+        assert!(
+            out[..n].windows(2).all(|w| w[1].y >= w[0].y - 1e-9),
+            "left side goes down"
+        );
+        assert!(
+            out[n..].windows(2).all(|w| w[1].y <= w[0].y + 1e-9),
+            "right side goes up"
+        );
         assert!(out[0].y - y0 < 6.0 && y1 - out[n - 1].y < 6.0);
         // Every point lies on its band's side: none is inside the other side's x.
-        assert!(out[..n].iter().zip(out[n..].iter().rev()).all(|(l, r)| l.x <= r.x));
+        assert!(out[..n]
+            .iter()
+            .zip(out[n..].iter().rev())
+            .all(|(l, r)| l.x <= r.x));
         assert!(avatar_outline(&TriMesh::new(Vec::new(), Vec::new()), &cal.front).is_empty());
     }
 

@@ -453,7 +453,8 @@ mod tests {
         p.side = RgbImage::from_fn(320, 240, |_, _| {
             let r = rng.next_u64().to_le_bytes();
             image::Rgb([r[0], r[1], r[2]])
-        }).into();
+        })
+        .into();
         assert!(matches!(m.screen(&p, &c, true), Screened::Skip(e) if e.contains("random bytes")));
         let mut p = pair(1, 0.1, 100);
         p.front = RgbImage::new(160, 120).into();
