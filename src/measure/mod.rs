@@ -377,9 +377,6 @@ pub struct Measurer {
     /// The armpit search cuts every grid height unless told the loops' critical heights
     /// ([`Measurer::find_armpit`]); tests compare both.
     cut_every_armpit_height: bool,
-    /// The torso samples are cut as any section is, not walked loop by loop
-    /// ([`SectionScratch::trace_across_x`]); tests compare both.
-    cut_every_torso_height: bool,
     critical: CriticalScratch,
 }
 
@@ -407,12 +404,12 @@ impl Measurer {
     }
 
     /// A measurer that takes neither short cut of a closed surface: it cuts every grid
-    /// height of the armpit search, and cuts the torso samples with the general cut
-    /// instead of walking their loops. The same values, slower (for tests).
+    /// height of the armpit search, and every section with the general cut instead of
+    /// walking its loops. The same values, slower (for tests).
     pub fn without_short_cuts() -> Self {
         Measurer {
             cut_every_armpit_height: true,
-            cut_every_torso_height: true,
+            section: SectionScratch::default().never_walking(),
             ..Self::default()
         }
     }
@@ -639,24 +636,6 @@ impl Measurer {
 
     /// The torso loop's hull at height `y`.
     fn torso_at(&mut self, mesh: &TriMesh, y: f64, axis_x: f64) -> Option<Sample> {
-        // On a closed surface the loops across the axis are walked in order (the same
-        // loops and points as the cut, without its bookkeeping).
-        if !self.cut_every_torso_height && self.section.trace_across_x(mesh, &self.index, y, axis_x)
-        {
-            let reach = TORSO_REACH_OF_STATURE * self.stature();
-            let mut best: Option<HullStats> = None;
-            for i in 0..self.section.traced().len() {
-                if !straddles(&self.section.traced()[i], axis_x, reach) {
-                    continue;
-                }
-                if let Some(h) = self.section.traced_hull(i) {
-                    if best.is_none_or(|b| h.area_m2 > b.area_m2) {
-                        best = Some(h);
-                    }
-                }
-            }
-            return best.map(|hull| Sample { y, hull });
-        }
         self.cut_torso(mesh, y, axis_x);
         self.torso(axis_x).map(|(_, hull)| Sample { y, hull })
     }

@@ -588,10 +588,14 @@ pub struct SectionScratch {
     loops: Vec<LoopInfo>,
     points: Vec<DVec2>,
     hull: Vec<DVec2>,
-    /// [`SectionScratch::trace_across_x`]: the traced loops' crossing points, loop by
-    /// loop in order around each, and each loop's range of them with its extents.
+    /// [`SectionScratch::walk`]: the walked loops' crossing points, loop by loop in
+    /// order around each, and each loop's range of them with its extents.
     traced_points: Vec<DVec2>,
     traced: Vec<LoopInfo>,
+    /// Whether the last section was walked (its loops are `traced`).
+    walked: bool,
+    /// Never walk (tests compare the walk with the general cut).
+    never_walk: bool,
 }
 
 /// Height differences of a triangle's corners from the plane y, a corner within
@@ -699,8 +703,14 @@ impl SectionScratch {
     /// Cuts `mesh` at height `y` through the candidate triangles of `index` (built
     /// for this mesh) and splits the cut into loops: segments of triangles that share
     /// a crossed edge belong to the same loop.
+    ///
+    /// On a closed 2-manifold the loops are walked instead ([`SectionScratch::walk`]):
+    /// the same loops, extents and hulls, faster.
     pub fn cut(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64) {
-        self.grow_cut(mesh, index, y, None);
+        self.walked = !self.never_walk && self.walk(mesh, index, y, None);
+        if !self.walked {
+            self.grow_cut(mesh, index, y, None);
+        }
     }
 
     /// As [`SectionScratch::cut`], keeping only the loops that cross the vertical plane
@@ -709,7 +719,16 @@ impl SectionScratch {
     /// so every such loop comes out exactly as the full cut gives it, and loops away
     /// from the axis (arms, hands) are never cut.
     pub fn cut_across_x(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64, axis_x: f64) {
-        self.grow_cut(mesh, index, y, Some(axis_x));
+        self.walked = !self.never_walk && self.walk(mesh, index, y, Some(axis_x));
+        if !self.walked {
+            self.grow_cut(mesh, index, y, Some(axis_x));
+        }
+    }
+
+    /// Cuts with the general cut only, never walking loops (for tests comparing both).
+    pub fn never_walking(mut self) -> Self {
+        self.never_walk = true;
+        self
     }
 
     /// The cut at `y` grown loop by loop: from each candidate triangle that crosses the
@@ -912,20 +931,13 @@ impl SectionScratch {
         }
     }
 
-    /// As [`SectionScratch::cut_across_x`] on a closed 2-manifold, faster: each loop
-    /// across the plane x = `axis_x` is walked from a triangle spanning that plane,
+    /// The cut at `y` on a closed 2-manifold (with `across_x`, only the loops across that
+    /// plane): each loop is walked from a candidate triangle (one spanning the plane),
     /// triangle to triangle across its crossed edges, listing each crossing point once
-    /// in order around the loop ([`SectionScratch::traced`],
-    /// [`SectionScratch::traced_hull`]). The loops, their order, extents and point sets
-    /// are those of `cut_across_x`. Returns false, with nothing traced, where the index
-    /// is not of a closed 2-manifold or a walk does not close (then cut instead).
-    pub fn trace_across_x(
-        &mut self,
-        mesh: &TriMesh,
-        index: &LevelIndex,
-        y: f64,
-        axis_x: f64,
-    ) -> bool {
+    /// in order around the loop. The loops, their order, extents and point sets are the
+    /// general cut's. Returns false, with nothing kept, where the index is not of a
+    /// closed 2-manifold or a walk does not close (then the general cut runs).
+    fn walk(&mut self, mesh: &TriMesh, index: &LevelIndex, y: f64, across_x: Option<f64>) -> bool {
         self.traced.clear();
         self.traced_points.clear();
         // (As for every cut, `index` must have been built for this mesh.)
@@ -934,7 +946,11 @@ impl SectionScratch {
         }
         self.begin(mesh);
         let epoch = self.epoch;
-        for entry in index.entries_across_x(y, axis_x) {
+        let (across, all): (Option<_>, &[Entry]) = match across_x {
+            Some(axis_x) => (Some(index.entries_across_x(y, axis_x)), &[]),
+            None => (None, index.candidate_entries(y)),
+        };
+        for entry in across.into_iter().flatten().chain(all.iter()) {
             let t0 = entry.triangle;
             if !entry.may_cross(y) || self.seg_of_tri[t0 as usize].0 == epoch {
                 continue;
@@ -984,26 +1000,24 @@ impl SectionScratch {
         true
     }
 
-    /// The loops of the last [`SectionScratch::trace_across_x`].
-    pub fn traced(&self) -> &[LoopInfo] {
-        &self.traced
-    }
-
-    /// Convex hull of traced loop `i`; `None` if it has fewer than 3 hull corners.
-    pub fn traced_hull(&mut self, i: usize) -> Option<HullStats> {
-        let info = *self.traced.get(i)?;
-        let pts = &mut self.traced_points[info.seg_start as usize..info.seg_end as usize];
-        hull_stats(pts, &mut self.hull)
-    }
-
     /// The loops of the last section.
     pub fn loops(&self) -> &[LoopInfo] {
-        &self.loops
+        if self.walked {
+            &self.traced
+        } else {
+            &self.loops
+        }
     }
 
     /// Convex hull of loop `i` (each crossing point once); `None` if it has fewer
     /// than 3 hull corners.
     pub fn loop_hull(&mut self, i: usize) -> Option<HullStats> {
+        if self.walked {
+            let info = *self.traced.get(i)?;
+            // Sorted in place by the hull: the walk's order is not needed again.
+            let pts = &mut self.traced_points[info.seg_start as usize..info.seg_end as usize];
+            return hull_stats(pts, &mut self.hull);
+        }
         self.group();
         let info = *self.loops.get(i)?;
         self.points.clear();
@@ -1022,6 +1036,9 @@ impl SectionScratch {
 
     /// Convex hull of every loop of the section together.
     pub fn whole_hull(&mut self) -> Option<HullStats> {
+        if self.walked {
+            return hull_stats(&mut self.traced_points, &mut self.hull);
+        }
         self.points.clear();
         for s in &self.segs {
             self.points.extend_from_slice(s);
@@ -1428,48 +1445,61 @@ mod tests {
         }
     }
 
-    /// Walking the loops across a plane gives the cut's loops: the same extents, the
-    /// same hulls to the bit, each crossing point once; not on an open mesh.
+    /// Walking the loops gives the general cut's loops, in the same order: the same
+    /// extents, the same hulls to the bit, each crossing point once, across a plane or
+    /// all of them; an open mesh is cut, not walked.
     #[test]
-    fn traced_loops_equal_the_cut_loops() {
+    fn walked_loops_equal_the_cut_loops() {
         let ball = shapes::uv_sphere(0.2, 17, 31);
         let m = beside(
             shapes::elliptic_cylinder(0.15, 0.1, 1.0, 7, 48),
             &ball,
             DVec3::new(0.0, 0.5, 0.0),
         );
+        let m = beside(m, &ball, DVec3::new(0.5, 0.45, 0.1));
         let mut idx = LevelIndex::default();
         idx.rebuild(&m, 0.0, 1.0);
-        let (mut cut, mut walk) = (SectionScratch::default(), SectionScratch::default());
+        let mut cut = SectionScratch::default().never_walking();
+        let mut walk = SectionScratch::default();
         for y in [0.05, 0.3337, 0.42, 0.5, 0.61, 0.91] {
-            for axis in [0.0, 0.01, -0.12] {
-                cut.cut_across_x(&m, &idx, y, axis);
-                assert!(walk.trace_across_x(&m, &idx, y, axis), "closed surfaces");
+            for axis in [None, Some(0.0), Some(0.01), Some(-0.12), Some(0.5)] {
+                match axis {
+                    Some(a) => {
+                        cut.cut_across_x(&m, &idx, y, a);
+                        walk.cut_across_x(&m, &idx, y, a);
+                    }
+                    None => {
+                        cut.cut(&m, &idx, y);
+                        walk.cut(&m, &idx, y);
+                    }
+                }
+                assert!(walk.walked && !cut.walked, "closed surfaces are walked");
                 assert_eq!(
-                    walk.traced().len(),
+                    walk.loops().len(),
                     cut.loops().len(),
-                    "at {y}, axis {axis}"
+                    "at {y}, axis {axis:?}"
                 );
                 for i in 0..cut.loops().len() {
-                    let (a, b) = (walk.traced()[i], cut.loops()[i]);
+                    let (a, b) = (walk.loops()[i], cut.loops()[i]);
                     assert_eq!(
                         (a.x_min, a.x_max, a.z_min, a.z_max),
                         (b.x_min, b.x_max, b.z_min, b.z_max)
                     );
-                    assert_eq!(walk.traced_hull(i), cut.loop_hull(i));
-                    let n = (a.seg_end - a.seg_start) as usize;
                     assert_eq!(
-                        n,
-                        (b.seg_end - b.seg_start) as usize,
-                        "one point per segment"
+                        a.seg_end - a.seg_start,
+                        b.seg_end - b.seg_start,
+                        "one point a segment"
                     );
+                    assert_eq!(walk.loop_hull(i), cut.loop_hull(i));
                 }
+                assert_eq!(walk.whole_hull(), cut.whole_hull());
             }
         }
         let mut open = m.clone();
         open.triangles.pop();
         let mut idx = LevelIndex::default();
         idx.rebuild(&open, 0.0, 1.0);
-        assert!(!walk.trace_across_x(&open, &idx, 0.5, 0.0));
+        walk.cut(&open, &idx, 0.5);
+        assert!(!walk.walked);
     }
 }
