@@ -1,6 +1,7 @@
 //! Times `measure()` on the MakeHuman body (13k vertices) against the per-frame budget:
 //! a fresh call (builds the height index and buffers) and a warm `Measurer` call (what
-//! the station pays per frame). Falls back to the committed station template
+//! the station pays per frame), then the same on the committed station template, the
+//! closed surface the station's avatars have. Falls back to the committed station template
 //! (`templates/makehuman-adult.obj`), then to a synthetic stick body, when the MakeHuman
 //! data is missing.
 
@@ -99,6 +100,26 @@ fn bench(c: &mut Criterion) {
             measure(black_box(&pair[k % 2]))
         })
     });
+    // The station's avatar is the committed template's closed surface: its sections walk
+    // their loops and the armpit search skips heights by their critical heights, which
+    // MakeHuman's raw base mesh (not closed) never does. Per frame, with and without.
+    if let Some(t) = template() {
+        let mut other = t.clone();
+        other.map_positions(|p| p * 1.01);
+        let closed = [t, other];
+        for (how, mut m) in [
+            ("", Measurer::new()),
+            ("_without_short_cuts", Measurer::without_short_cuts()),
+        ] {
+            let mut out = m.measure(&closed[0]).expect("the template measures");
+            c.bench_function(&format!("measure_per_frame_template{how}"), |b| {
+                b.iter(|| {
+                    k += 1;
+                    m.measure_into(black_box(&closed[k % 2]), &mut out)
+                })
+            });
+        }
+    }
     let torso = LoopSelector::Torso { axis_x: 0.0 };
     c.bench_function(&format!("girth_at_new_measurer_{name}"), |b| {
         b.iter(|| Measurer::new().girth_at(black_box(&body), 1.0, torso))
