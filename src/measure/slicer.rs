@@ -96,34 +96,15 @@ impl Entry {
 /// crossing point is interpolated from the edge's lower-indexed vertex, so both
 /// triangles that share an edge compute the bit-identical point.
 fn triangle_segment(mesh: &TriMesh, t: [u32; 3], y: f64) -> Option<([DVec2; 2], [u8; 2])> {
-    let d = t.map(|v| {
-        let d = mesh.positions[v as usize].y - y;
-        if d.abs() < ON_PLANE_EPS_M {
-            ON_PLANE_EPS_M
-        } else {
-            d
-        }
-    });
-    let mut ends = [DVec2::ZERO; 2];
-    let mut edges = [0u8; 2];
-    let mut k = 0;
-    for e in 0..3 {
-        let (a, b) = (e, (e + 1) % 3);
-        if (d[a] > 0.0) != (d[b] > 0.0) && k < 2 {
-            let (lo, hi) = ordered(t[a], t[b]);
-            let (dl, dh) = if lo == t[a] {
-                (d[a], d[b])
-            } else {
-                (d[b], d[a])
-            };
-            let (pl, ph) = (mesh.positions[lo as usize], mesh.positions[hi as usize]);
-            let p: DVec3 = pl + (ph - pl) * (dl / (dl - dh));
-            ends[k] = DVec2::new(p.x, p.z);
-            edges[k] = e as u8;
-            k += 1;
-        }
-    }
-    (k == 2).then_some((ends, edges))
+    let d = plane_offsets(mesh, t, y);
+    let [e0, e1] = crossed_edges(&d)?;
+    Some((
+        [
+            edge_crossing(mesh, t, &d, e0),
+            edge_crossing(mesh, t, &d, e1),
+        ],
+        [e0 as u8, e1 as u8],
+    ))
 }
 
 /// Marks a boundary edge in [`LevelIndex`]'s neighbour table.
@@ -394,7 +375,7 @@ impl LevelIndex {
     ) -> bool {
         out.clear();
         if !self.closed_manifold
-            || self.topology != mesh.triangles
+            || self.neighbours.len() != mesh.triangles.len()
             || !(self.covers(lo) && self.covers(hi))
             || self.offsets.len() != self.n_buckets + 1
             || self.n_buckets == 0
