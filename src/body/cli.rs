@@ -48,6 +48,9 @@ pub enum TemplatesCommand {
         height: f64,
         #[arg(long, default_value_t = 0.5)]
         proportions: f64,
+        /// Cup size (breasts), 0..1, 0.5 the average body's.
+        #[arg(long, default_value_t = 0.5)]
+        cup: f64,
         /// Use `ShapeLibrary::sample_adult(SEED)` instead of the sliders.
         #[arg(long)]
         seed: Option<u64>,
@@ -94,6 +97,7 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
             weight,
             height,
             proportions,
+            cup,
             seed,
             library,
             out,
@@ -105,6 +109,7 @@ pub fn run(args: TemplatesArgs) -> anyhow::Result<()> {
                 weight,
                 height,
                 proportions,
+                cup,
             };
             write_body(&library, seed, shape, &out)
         }

@@ -4,8 +4,10 @@
 //! Reads `3dobjs/base.obj` (only the faces under `g body`; the other groups are helper
 //! geometry, of which `joint-l-eye`/`joint-r-eye` are used to check left and right),
 //! `targets/macrodetails/macro.json` (the macro variables and their knots) and the adult
-//! macro targets `targets/macrodetails/{,height/,proportions/}*.target.gz` (gzip text,
-//! lines `index dx dy dz` in decimetres, indices into all of base.obj's vertices).
+//! macro targets `targets/macrodetails/{,height/,proportions/}*.target.gz` and the adult
+//! breast macro targets `targets/breast/GENDER-AGE-MUSCLE-WEIGHT-CUP-FIRMNESS.target.gz`
+//! (gzip text, lines `index dx dy dz` in decimetres, indices into all of base.obj's
+//! vertices).
 //!
 //! Conversion to the station frame: decimetres -> metres; the facing (+Z) is checked from
 //! the geometry (the eyes lie in front of the head's centre, the toes in front of the
@@ -13,7 +15,10 @@
 //! Y and/or a mirror in X are applied when the data disagree (MakeHuman's own frame needs
 //! neither). Quads are split along their shorter diagonal. Targets for babies and
 //! children are not imported (the library is adult only); the race targets are premixed
-//! with weight 1/3 each.
+//! with weight 1/3 each. Of the breast targets only those at the average firmness are
+//! kept: firmness is no parameter of the library, so it sits at its middle knot, where
+//! every other firmness target weighs 0 (cup size is a parameter, [`super::ShapeParams::cup`]).
+//! The breast folder's local modifiers (`breast-*`, not macro targets) are not read.
 
 use super::library::{Knot, LibraryData, LibraryMeta, TargetData, Variable, QUANTUM_M};
 use super::BodyError;
@@ -36,6 +41,10 @@ pub const RACES: [&str; 3] = ["african", "asian", "caucasian"];
 pub const ADULT_AGE_KNOTS: [&str; 2] = ["young", "old"];
 /// Subfolders of targets/macrodetails holding macro targets with an extra factor.
 pub const MACRO_SUBFOLDERS: [&str; 2] = ["height", "proportions"];
+/// Folder (beside macrodetails) of the breast macro targets (cup size x firmness).
+pub const BREAST_FOLDER: &str = "breast";
+/// The firmness knot kept: firmness has no parameter and sits at this, its middle knot.
+pub const KEPT_FIRMNESS_KNOT: &str = "averagefirmness";
 /// Macro.json part boundaries are fuzzy (e.g. 0.1874998, 1.01); knots are snapped to
 /// this grid (1/16).
 const KNOT_GRID: f64 = 16.0;
@@ -70,6 +79,9 @@ pub struct ImportReport {
     pub left_eye_x_m: f64,
     pub targets_read: usize,
     pub targets_skipped_non_adult: usize,
+    /// Breast targets at another firmness than [`KEPT_FIRMNESS_KNOT`] (weight 0 in the
+    /// library's evaluation).
+    pub targets_skipped_firmness: usize,
     pub targets_stored: usize,
     pub stored_entries: usize,
 }
@@ -323,7 +335,11 @@ pub fn import_mpfb2(dir: &Path) -> Result<ImportResult, BodyError> {
     // Targets.
     let mdir = dir.join("targets").join("macrodetails");
     let variables = read_macro_json(&mdir.join("macro.json"))?;
-    let files = target_files(&mdir)?;
+    let mut files = target_files(&mdir)?;
+    files.extend(breast_target_files(
+        &dir.join("targets").join(BREAST_FOLDER),
+        &mut report,
+    )?);
     let nv = mesh.vertex_count();
     let targets = read_targets(&files, &obj, &local, nv, &variables, &frame, &mut report)?;
     report.targets_stored = targets.len();
@@ -512,6 +528,37 @@ fn target_files(mdir: &Path) -> Result<Vec<PathBuf>, BodyError> {
                 files.push(p);
             }
         }
+    }
+    files.sort();
+    Ok(files)
+}
+
+/// The breast macro targets of `bdir` (names of six knots; the folder's `breast-*` local
+/// modifiers are no macro targets), sorted, without those at a firmness other than
+/// [`KEPT_FIRMNESS_KNOT`] (counted in the report).
+fn breast_target_files(bdir: &Path, report: &mut ImportReport) -> Result<Vec<PathBuf>, BodyError> {
+    let mut files = Vec::new();
+    let rd = std::fs::read_dir(bdir).map_err(|e| BodyError::io(bdir, e))?;
+    for e in rd {
+        let e = e.map_err(|e| BodyError::io(bdir, e))?;
+        let p = e.path();
+        let Some(stem) = p
+            .file_name()
+            .and_then(|n| n.to_str())
+            .and_then(|n| n.strip_suffix(".target.gz"))
+        else {
+            continue;
+        };
+        let parts: Vec<&str> = stem.split('-').collect();
+        if parts.len() != 6 || !["female", "male"].contains(&parts[0]) {
+            continue;
+        }
+        if parts[5] != KEPT_FIRMNESS_KNOT {
+            report.targets_read += 1;
+            report.targets_skipped_firmness += 1;
+            continue;
+        }
+        files.push(p);
     }
     files.sort();
     Ok(files)

@@ -391,6 +391,7 @@ fn param_value(var: &str, p: &ShapeParams) -> Option<f64> {
         "weight" => p.weight,
         "height" => p.height,
         "proportions" => p.proportions,
+        "cupsize" => p.cup,
         _ => return None,
     })
 }
@@ -656,7 +657,7 @@ impl ShapeLibrary {
             }
             let first = var.knots[0].value;
             let last = var.knots[n - 1].value;
-            // A variable without a parameter (cup size, firmness) sits at its middle.
+            // A variable without a parameter (firmness) sits at its middle.
             let v = param_value(&var.name, &p)
                 .unwrap_or(0.5 * (first + last))
                 .clamp(first, last);
@@ -731,6 +732,9 @@ impl ShapeLibrary {
                 }
             },
             proportions: rng.normal_in(0.5, SAMPLE_SD, SAMPLE_SLIDER_RANGE),
+            // The library's sample keeps the average cup: its bodies (and the regression
+            // set drawn from them) are those of before the cup size was a parameter.
+            cup: 0.5,
         }
     }
 }

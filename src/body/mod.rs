@@ -91,7 +91,9 @@ pub const AGE_MAX_YEARS: f64 = 90.0;
 /// Ranges (see [`ShapeParams::clamp`]): `gender` 0 (female) .. 1 (male); `age_years`
 /// 25 .. 90 (younger adults are represented by 25: MakeHuman's targets below 25 years
 /// are child shapes); `muscle`, `weight`, `height`, `proportions` 0 .. 1 with 0.5 the
-/// average (MakeHuman's macro sliders; `proportions` 0 = uncommon, 1 = ideal).
+/// average (MakeHuman's macro sliders; `proportions` 0 = uncommon, 1 = ideal); `cup` 0 ..
+/// 1, the breasts' size (MakeHuman's cup size: 0 the smallest, 0.5 the average body's,
+/// 1 the largest; on men it shapes the pectoral region the same way).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct ShapeParams {
     pub gender: f64,
@@ -100,6 +102,9 @@ pub struct ShapeParams {
     pub weight: f64,
     pub height: f64,
     pub proportions: f64,
+    /// Absent from files written before it existed: the average, 0.5.
+    #[serde(default = "ShapeParams::average_slider")]
+    pub cup: f64,
 }
 
 impl Default for ShapeParams {
@@ -113,6 +118,7 @@ impl Default for ShapeParams {
             weight: 0.5,
             height: 0.5,
             proportions: 0.5,
+            cup: 0.5,
         }
     }
 }
@@ -129,7 +135,12 @@ impl ShapeParams {
             weight: c(self.weight, 0.0, 1.0, d.weight),
             height: c(self.height, 0.0, 1.0, d.height),
             proportions: c(self.proportions, 0.0, 1.0, d.proportions),
+            cup: c(self.cup, 0.0, 1.0, d.cup),
         }
+    }
+
+    fn average_slider() -> f64 {
+        0.5
     }
 
     /// MakeHuman's age slider value (0.5 at 25 years, 1.0 at 90 years) of a clamped age.

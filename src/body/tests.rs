@@ -238,6 +238,48 @@ fn weight_widens_waist_and_hips() {
 }
 
 #[test]
+fn cup_size_deepens_a_womans_bust_and_leaves_a_man_and_the_average_cup_alone() {
+    let l = lib();
+    // The front of the trunk (largest z of the vertices within the shoulders' width)
+    // between the armpits and 15 cm below them.
+    let bust_front = |b: &TriMesh| {
+        let i = prepare(b).unwrap();
+        let top = 0.5 * (i.landmarks.armpit_left.y + i.landmarks.armpit_right.y);
+        let half = 0.5 * (i.landmarks.armpit_left.x - i.landmarks.armpit_right.x);
+        b.positions
+            .iter()
+            .filter(|p| p.y < top && p.y > top - 0.15 && p.x.abs() < half)
+            .map(|p| p.z)
+            .fold(f64::MIN, f64::max)
+    };
+    let woman = |cup: f64| {
+        l.body(&params(|p| {
+            p.gender = 0.0;
+            p.cup = cup
+        }))
+    };
+    let (small, large) = (bust_front(&woman(0.0)), bust_front(&woman(1.0)));
+    let average = bust_front(&woman(0.5));
+    assert!(
+        large > average + 0.02 && average > small,
+        "bust front small {small} average {average} large {large}"
+    );
+    // The library's breast targets are keyed on women: a man's body does not change.
+    let man = |cup: f64| {
+        l.body(&params(|p| {
+            p.gender = 1.0;
+            p.cup = cup
+        }))
+    };
+    assert_eq!(man(0.0).positions, man(1.0).positions);
+    // The average cup is the body of before the cup size was a parameter: the template.
+    assert_eq!(
+        l.body(&ShapeParams::default()).positions,
+        l.template().mesh.positions
+    );
+}
+
+#[test]
 fn height_slider_makes_taller_bodies() {
     let l = lib();
     let mut last = 0.0;
@@ -349,6 +391,7 @@ fn clamp_handles_out_of_range_and_nan() {
         weight: -1.0,
         height: 0.3,
         proportions: 7.0,
+        cup: -3.0,
     }
     .clamp();
     assert_eq!(p.gender, 1.0);
@@ -357,6 +400,7 @@ fn clamp_handles_out_of_range_and_nan() {
     assert_eq!(p.weight, 0.0);
     assert_eq!(p.height, 0.3);
     assert_eq!(p.proportions, 1.0);
+    assert_eq!(p.cup, 0.0);
     // Extreme sliders still give finite bodies.
     let b = lib().body(&ShapeParams {
         gender: 9.0,
@@ -365,6 +409,7 @@ fn clamp_handles_out_of_range_and_nan() {
         weight: 1.0,
         height: 1.0,
         proportions: 0.0,
+        cup: 1.0,
     });
     assert!(b.positions.iter().all(|v| v.is_finite()));
 }
@@ -710,7 +755,13 @@ fn synthetic_mpfb2(dir: &Path, xf: impl Fn(DVec3) -> DVec3) {
                               {"lowest": 0.1874999, "highest": 0.49998, "low": "child", "high": "young"},
                               {"lowest": 0.49999, "highest": 1.01, "low": "young", "high": "old"}]},
             "weight": {"parts": [{"lowest": -0.01, "highest": 0.49998, "low": "minweight", "high": "averageweight"},
-                                 {"lowest": 0.49999, "highest": 1.01, "low": "averageweight", "high": "maxweight"}]}
+                                 {"lowest": 0.49999, "highest": 1.01, "low": "averageweight", "high": "maxweight"}]},
+            "muscle": {"parts": [{"lowest": -0.01, "highest": 0.49998, "low": "minmuscle", "high": "averagemuscle"},
+                                 {"lowest": 0.49999, "highest": 1.01, "low": "averagemuscle", "high": "maxmuscle"}]},
+            "cupsize": {"parts": [{"lowest": -0.01, "highest": 0.49998, "low": "mincup", "high": "averagecup"},
+                                  {"lowest": 0.49999, "highest": 1.01, "low": "averagecup", "high": "maxcup"}]},
+            "firmness": {"parts": [{"lowest": -0.01, "highest": 0.4998, "low": "minfirmness", "high": "averagefirmness"},
+                                   {"lowest": 0.4999, "highest": 1.01, "low": "averagefirmness", "high": "maxfirmness"}]}
         }}"#,
     )
     .unwrap();
@@ -738,6 +789,21 @@ fn synthetic_mpfb2(dir: &Path, xf: impl Fn(DVec3) -> DVec3) {
         "african-male-old.target.gz",
         &[(0, DVec3::new(0.3, 0.0, 0.0))],
     );
+    // Breast macro targets: one kept, one at another firmness (weight 0 at the library's
+    // fixed firmness), one child's, and a local modifier that is no macro target.
+    let breast = dir.join("targets/breast");
+    std::fs::create_dir_all(&breast).unwrap();
+    for name in [
+        "female-young-averagemuscle-averageweight-maxcup-averagefirmness",
+        "female-young-averagemuscle-averageweight-maxcup-minfirmness",
+        "female-child-averagemuscle-averageweight-maxcup-averagefirmness",
+        "breast-dist-incr",
+    ] {
+        gz(
+            &format!("../breast/{name}.target.gz"),
+            &[(1, DVec3::new(0.0, 0.0, 0.05))],
+        );
+    }
 }
 
 #[test]
@@ -766,9 +832,39 @@ fn importer_turns_and_mirrors_figures_into_the_station_frame() {
                 && r.report.toes_ahead_m > 0.0
         );
         assert_eq!(
-            r.report.targets_skipped_non_adult, 1,
-            "{name}: child target not skipped"
+            r.report.targets_skipped_non_adult, 2,
+            "{name}: child targets not skipped"
         );
+        assert_eq!(r.report.targets_skipped_firmness, 1, "{name}");
+        // The kept breast target carries its six knots; the local modifier is not read.
+        let cup: Vec<_> = r
+            .data
+            .targets
+            .iter()
+            .filter(|t| t.keys.iter().any(|k| k == "maxcup"))
+            .collect();
+        assert_eq!(cup.len(), 1, "{name}");
+        assert_eq!(
+            cup[0].keys,
+            [
+                "female",
+                "young",
+                "averagemuscle",
+                "averageweight",
+                "maxcup",
+                "averagefirmness"
+            ]
+        );
+        assert_eq!(
+            (cup[0].indices[0], cup[0].offsets[0]),
+            (1, [0, 0, 500]),
+            "{name}"
+        );
+        assert!(r
+            .data
+            .targets
+            .iter()
+            .all(|t| !t.name.starts_with("breast-")));
         // Every variant lands on the same station-frame figure, outward oriented.
         let m = TriMesh::new(
             r.data

@@ -101,6 +101,11 @@ impl Fitter {
                 params,
                 observed,
                 self.opts.shape_iterations,
+                if self.opts.refine_cup {
+                    &ALL_PARAMS
+                } else {
+                    &MACRO_PARAMS
+                },
             )
             .0;
         }

@@ -203,6 +203,8 @@ pub fn macro_params(r: &AnsurRecord) -> ShapeParams {
         weight: (0.5 + (r.bmi() - 23.5) / 22.0).clamp(0.05, 0.95),
         height: (0.5 + 0.05 * z).clamp(0.3, 0.7),
         proportions: 0.5,
+        // The bust is the generator's own ([`shape_bust`]), not the library's cup size.
+        cup: 0.5,
     }
 }
 
