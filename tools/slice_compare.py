@@ -4,13 +4,17 @@
 For each subject of a synthetic set, slices the true body (`SUBJECT.truth/mesh.obj`) and
 the station's avatar (`FITS/SUBJECT/avatar.obj`, from `fitstation replay REC --out
 FITS/SUBJECT`) at the truth's chest level (the largest torso girth from the armpit down
-0.1 x stature, `shared/spec/measurements.md`) and hip level (where the torso reaches
-furthest back between the crotch and the crotch + 0.25 x stature), and prints per level:
+0.1 x stature, `shared/spec/measurements.md`), hip level (where the torso reaches
+furthest back between the crotch and the crotch + 0.25 x stature) and waist level (the
+smallest torso girth between crotch + 0.1 x stature and armpit - 0.05 x stature, as
+tools/section_fullness.py), and prints per level:
 
   truth:  the level, the torso loop's breadth (x extent), depth (z extent) and convex hull
           perimeter (mm);
   same y: the avatar's breadth, depth and hull at the truth's level, minus the truth's
-          (what the fit got wrong in the section itself);
+          (what the fit got wrong in the section itself), and both sections' fullness
+          (hull over the ellipse of the section's own breadth and depth: with the
+          extents right, a hull error is the section's shape);
   own y:  the avatar's own level (how far from the truth's) and its hull there, minus the
           truth's (what the level adds: a flat buttock leaves the hip's level open);
   back:   (hip only) how far behind its furthest point the truth's back lies at the
@@ -100,6 +104,12 @@ def scan(verts, tris, lo, hi, cx, key):
     return best
 
 
+def fullness(breadth, depth, hull):
+    """Hull perimeter over the Ramanujan perimeter of the ellipse of breadth and depth."""
+    a, c = breadth / 2.0, depth / 2.0
+    return hull / (np.pi * (3.0 * (a + c) - np.sqrt((3.0 * a + c) * (a + 3.0 * c))))
+
+
 def main():
     if len(sys.argv) < 4:
         sys.exit(__doc__)
@@ -120,6 +130,7 @@ def main():
         for what, lo, hi, key in [
             ("chest", armpit - 0.1 * stature, armpit - 0.004, lambda x: -x[2]),
             ("hip", crotch + 0.01, crotch + 0.25 * stature, lambda x: x[3]),
+            ("waist", crotch + 0.1 * stature, armpit - 0.05 * stature, lambda x: x[2]),
         ]:
             t = scan(vt, ft, lo, hi, cxt, key)
             a = scan(va, fa, lo, hi, cxa, key)
@@ -131,6 +142,7 @@ def main():
             line = f"  {what}: truth y {yt:.3f} breadth {w:.0f} depth {d:.0f} hull {h:.0f}"
             if same is not None:
                 line += f" | same y: {same[0] - w:+.0f} {same[1] - d:+.0f} hull {same[2] - h:+.0f}"
+                line += f" full {fullness(w, d, h):.3f} vs {fullness(*same[:3]):.3f}"
             line += f" | own y {ya - yt:+.3f}: hull {ha - h:+.0f}"
             if what == "hip":
                 tb = section(vt, ft, ya, cxt)
