@@ -98,6 +98,13 @@ pub fn run_eval(cmd: &EvalCmd) -> anyhow::Result<()> {
     opts.person_model = !cmd.no_person_model;
     opts.views = cmd.views;
     opts.fit.deformer = cmd.deformer;
+    let changed = crate::fit::FitSwitches::of(&opts.fit).changed();
+    if !changed.is_empty() {
+        eprintln!(
+            "eval: the fit runs with {} from the environment",
+            changed.join(" ")
+        );
+    }
     let mut source = |rec: &Path| -> anyhow::Result<crate::eval::FitResult> {
         let mut src = RecordingSource::open(rec)?;
         let calib = src.recording().calibration().clone();

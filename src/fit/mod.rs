@@ -224,6 +224,45 @@ pub struct FitStats {
     /// Vertices of pockets between arm and trunk brought down after the solve
     /// ([`armpit`]).
     pub armpit_peaks: usize,
+    /// The environment switches the fit ran with (`report.json` `fit.switches`).
+    pub switches: Option<FitSwitches>,
+}
+
+/// The fit's environment switches ([`WAIST_PRIOR_ENV`], [`TURN_ENV`], [`RIM_DEPTH_ENV`],
+/// [`CUP_ENV`]) as one fit used them, so that a report says how it was made.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct FitSwitches {
+    pub waist_prior: bool,
+    pub turn_from_toes: bool,
+    pub rim_depth: bool,
+    pub refine_cup: bool,
+}
+
+impl FitSwitches {
+    /// The switches of `opts`.
+    pub fn of(opts: &FitOptions) -> FitSwitches {
+        FitSwitches {
+            waist_prior: opts.waist_prior,
+            turn_from_toes: opts.turn_from_toes,
+            rim_depth: opts.rim_depth,
+            refine_cup: opts.refine_cup,
+        }
+    }
+
+    /// The settings that differ from the station's own behaviour (an empty environment),
+    /// as `VARIABLE=value`.
+    pub fn changed(&self) -> Vec<String> {
+        [
+            (!self.waist_prior, WAIST_PRIOR_ENV, "off"),
+            (!self.turn_from_toes, TURN_ENV, "off"),
+            (!self.rim_depth, RIM_DEPTH_ENV, "off"),
+            (self.refine_cup, CUP_ENV, "on"),
+        ]
+        .iter()
+        .filter(|(changed, _, _)| *changed)
+        .map(|(_, var, value)| format!("{var}={value}"))
+        .collect()
+    }
 }
 
 /// Per-subject state kept between frames.
@@ -554,6 +593,7 @@ impl Fitter {
         stats.residual_mm = if n > 0 { 1e3 * sum / n as f64 } else { 0.0 };
         stats.controls = s.controls.controls.len();
         stats.params = Some(s.params.clone());
+        stats.switches = Some(FitSwitches::of(&self.opts));
         stats.turn_deg = s.turn.map(|(t, _)| t.yaw.to_degrees());
         Ok((&s.positions, stats))
     }
@@ -1250,6 +1290,24 @@ mod tests {
         assert!(
             cost_with < cost_without,
             "cost with the cup {cost_with:.3e}, without {cost_without:.3e}"
+        );
+    }
+
+    #[test]
+    fn a_fit_names_the_switches_it_ran_with() {
+        let mut opts = FitOptions {
+            waist_prior: true,
+            turn_from_toes: true,
+            rim_depth: true,
+            refine_cup: false,
+            ..FitOptions::default()
+        };
+        assert!(FitSwitches::of(&opts).changed().is_empty());
+        opts.refine_cup = true;
+        opts.rim_depth = false;
+        assert_eq!(
+            FitSwitches::of(&opts).changed(),
+            ["FITSTATION_RIM_DEPTH=off", "FITSTATION_CUP=on"]
         );
     }
 
