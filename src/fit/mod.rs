@@ -1179,18 +1179,25 @@ mod tests {
         std::fs::remove_dir_all(&dir).ok();
     }
 
-    /// The macro-parameter refinement recovers a library body from its own descriptor,
-    /// starting from the average adult: the descriptor's residual ends under a millimetre
-    /// (the damping carried between iterations lets it cross the narrow valleys of the
-    /// cost within the default iteration count).
-    #[test]
-    fn shape_refinement_recovers_a_body_from_its_descriptor() {
+    /// The bundled library with the template's part labels and edges (what
+    /// [`shape_refine`] needs besides a start and a descriptor).
+    fn descriptor_setup() -> (&'static ShapeLibrary, Vec<Part>, Vec<[u32; 2]>) {
         let library = ShapeLibrary::shared().expect("the bundled shape library");
         let template = library.template();
         let rings = template.mesh.one_rings();
         let lm = pose::template_part_landmarks(template).expect("template landmarks");
         let labels = parts::label_parts(&template.mesh, &rings, &lm);
         let edges = shape::unique_edges(&template.mesh.triangles);
+        (library, labels, edges)
+    }
+
+    /// The macro-parameter refinement recovers a library body from its own descriptor,
+    /// starting from the average adult: the descriptor's residual ends under a millimetre
+    /// (the damping carried between iterations lets it cross the narrow valleys of the
+    /// cost within the default iteration count).
+    #[test]
+    fn shape_refinement_recovers_a_body_from_its_descriptor() {
+        let (library, labels, edges) = descriptor_setup();
         let truth = ShapeParams {
             gender: 0.8,
             age_years: 45.0,
@@ -1234,12 +1241,7 @@ mod tests {
 
     #[test]
     fn the_cup_size_is_free_only_when_asked() {
-        let library = ShapeLibrary::shared().expect("embedded library");
-        let template = library.template();
-        let rings = template.mesh.one_rings();
-        let lm = pose::template_part_landmarks(template).expect("template landmarks");
-        let labels = parts::label_parts(&template.mesh, &rings, &lm);
-        let edges = shape::unique_edges(&template.mesh.triangles);
+        let (library, labels, edges) = descriptor_setup();
         let truth = ShapeParams {
             gender: 0.05,
             age_years: 35.0,
