@@ -303,6 +303,7 @@ impl SectionPlan {
             axis,
             entries: slices.iter().map(|&s| Entry { slices: vec![s] }).collect(),
         };
+        let band_of = |s: u32| set.slice_band.get(s as usize).copied();
         let torso = slices_of(Part::Torso);
         let left = slices_of(Part::LeftLeg);
         let right = slices_of(Part::RightLeg);
@@ -331,6 +332,24 @@ impl SectionPlan {
                 for &s in &e.slices {
                     plan.slot[s as usize][k] = Some((ci as u32, ei as u32));
                 }
+            }
+        }
+        // Where trunk and legs share a band (the crotch, the buttocks' lowest rows), the
+        // trunk's vertices take the legs' depth map of that band: one map at one height.
+        // With the trunk's own map there, the buttocks' lowest rows moved with the trunk
+        // above them (fitted to the buttocks' back, its front filled in from the belly)
+        // while the thighs' rows beside them moved with the legs, 20-50 mm apart on some
+        // bodies: the step squared the thighs' tops at the back, fuller than any library
+        // body's (hull over the ellipse of their extents 1.03-1.06 on 7 of 16 development
+        // avatars, the library's 0.98-1.03).
+        let leg_z: std::collections::BTreeMap<u32, (u32, u32)> = left
+            .iter()
+            .chain(&right)
+            .filter_map(|&s| Some((band_of(s)?, plan.slot[s as usize][1]?)))
+            .collect();
+        for &s in &torso {
+            if let Some(&z) = band_of(s).and_then(|b| leg_z.get(&b)) {
+                plan.slot[s as usize][1] = Some(z);
             }
         }
         plan.chains = chains;
@@ -473,8 +492,9 @@ impl SectionPlan {
                     // The side view sees both legs as one: its depth is each leg's depth
                     // plus their stagger, an upper bound. A leg's depth is scaled by no more
                     // than its width (the front view sees each leg alone), about the same
-                    // centre.
-                    if let Some(x) = dx.filter(|x| is_leg && x.beta < d.beta) {
+                    // centre; so is the trunk's where it takes the legs' map.
+                    let legs_map = is_leg || c as usize == CHAIN_LEGS_Z;
+                    if let Some(x) = dx.filter(|x| legs_map && x.beta < d.beta) {
                         d.alpha += (d.beta - x.beta) * d.mid;
                         d.beta = x.beta;
                     }
@@ -1391,6 +1411,74 @@ mod tests {
             moved > 0.005,
             "the bulge under the limb followed by {moved}"
         );
+    }
+
+    /// Where trunk and legs share height bands (the crotch), the trunk's vertices there
+    /// take the legs' depth map, so that no step opens between them; above, the trunk
+    /// keeps its own. A trunk (elliptic cylinder, 0.70-1.10 m) over two legs (0-0.75 m):
+    /// the side view shows the trunk's back 4 cm further back than the candidate's, the
+    /// legs where they are. Before, the trunk's rows at 0.70 and 0.75 m went back with the
+    /// trunk while the legs' rows beside them stayed.
+    #[test]
+    fn the_trunk_takes_the_legs_depth_map_where_they_share_a_band() {
+        let mut mesh = crate::mesh::TriMesh::default();
+        let mut labels = Vec::new();
+        for (part, a, b, h, x, y) in [
+            (Part::Torso, 0.17, 0.12, 0.40, 0.0, 0.70),
+            (Part::LeftLeg, 0.07, 0.08, 0.75, 0.09, 0.0),
+            (Part::RightLeg, 0.07, 0.08, 0.75, -0.09, 0.0),
+        ] {
+            let rings = (h / 0.05f64).round() as usize;
+            let m = shapes::elliptic_cylinder(a, b, h, rings, 32);
+            let base = mesh.positions.len() as u32;
+            mesh.positions
+                .extend(m.positions.iter().map(|p| *p + DVec3::new(x, y, 0.0)));
+            mesh.triangles
+                .extend(m.triangles.iter().map(|t| t.map(|i| i + base)));
+            labels.extend(std::iter::repeat_n(part, m.positions.len()));
+        }
+        let calib = crate::camera::StationCalibration::nominal(640, 480, 600.0, 3.0, 0.5, 0.5);
+        let set = select_controls(
+            &mesh,
+            &labels,
+            &vec![false; mesh.vertex_count()],
+            0.02,
+            Variant::SliceExtremes,
+            &calib.front,
+            &calib.side,
+        );
+        let targets: Vec<Option<DVec3>> = set
+            .controls
+            .iter()
+            .map(|c| {
+                let p = mesh.positions[c.vertex as usize];
+                let back = c.part == Part::Torso && c.status == Status::Back;
+                Some(p - DVec3::Z * if back { 0.04 } else { 0.0 })
+            })
+            .collect();
+        let plan = SectionPlan::new(&set);
+        let mut scratch = SectionScratch::default();
+        let mut out = Vec::new();
+        plan.targets(&mesh.positions, &set, &targets, &[], &mut scratch, &mut out);
+        // The largest depth move of the trunk's vertices in a height range.
+        let moved = |y0: f64, y1: f64| {
+            out.iter()
+                .enumerate()
+                .filter(|&(v, _)| labels[v] == Part::Torso)
+                .filter_map(|(v, t)| {
+                    let p = mesh.positions[v];
+                    t.filter(|_| p.y >= y0 && p.y <= y1)
+                        .map(|t| (t.z - p.z).abs())
+                })
+                .fold(0.0f64, f64::max)
+        };
+        let shared = moved(0.69, 0.76);
+        assert!(
+            shared < 1e-6,
+            "the trunk's rows beside the legs moved {shared} m"
+        );
+        let above = moved(0.85, 1.0);
+        assert!(above > 0.03, "the trunk above followed its back: {above} m");
     }
 
     #[test]
