@@ -1,7 +1,7 @@
 //! The `fitstation eval` command: its arguments, the named sets of `--set NAME=DIR`,
 //! scoring each recording's fit, and printing (and writing) the tables.
 
-use super::table::clip;
+use super::table::{clip, interval_cell};
 use super::{evaluate, html, EvalTable, FitResult, MeasurementSummary};
 use std::path::{Path, PathBuf};
 
@@ -83,8 +83,9 @@ pub fn parse_set(spec: &str) -> anyhow::Result<EvalSet> {
     })
 }
 
-/// The sets side by side: one row per measurement, per set `MAE / bias / worst` (mm),
-/// then how many subjects of each set were scored.
+/// The sets side by side: one row per measurement, per set `MAE / bias / worst` (mm), the
+/// MAE's 90 % interval over other draws of as many subjects (resampled), then how many
+/// subjects of each set were scored.
 pub fn sets_side_by_side(sets: &[(String, EvalTable)]) -> String {
     let summaries: Vec<Vec<MeasurementSummary>> = sets.iter().map(|(_, t)| t.summary()).collect();
     let mut names: Vec<&String> = summaries.iter().flatten().map(|m| &m.name).collect();
@@ -108,6 +109,22 @@ pub fn sets_side_by_side(sets: &[(String, EvalTable)]) -> String {
                         m.mean_abs_error_mm, m.mean_bias_mm, m.worst_error_mm
                     )
                 });
+            s.push_str(&format!(" {cell:>COL$}"));
+        }
+        s.push('\n');
+    }
+    s.push_str(&format!("\n{:<20}", "MAE 90 % interval"));
+    for (n, _) in sets {
+        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
+    }
+    s.push('\n');
+    for name in &names {
+        s.push_str(&format!("{:<20}", clip(name, 20)));
+        for sum in &summaries {
+            let cell = sum
+                .iter()
+                .find(|m| &m.name == *name)
+                .map_or("-".into(), |m| interval_cell(m.mae_interval_mm));
             s.push_str(&format!(" {cell:>COL$}"));
         }
         s.push('\n');

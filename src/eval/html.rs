@@ -323,15 +323,16 @@ td,th{border:1px solid #ccc;padding:3px 8px;text-align:right}th{background:#f0f0
 /// The per-measurement MAE, bias and worst error, the worst girth, and each measurement's
 /// bars of signed error per subject.
 fn measurements_section(s: &mut String, table: &EvalTable) {
-    s.push_str("<h2>Measurements (fitted - true, mm)</h2><table><tr><th>measurement</th><th>subjects</th><th>MAE</th><th>bias</th><th>worst</th><th>worst subject</th></tr>");
+    s.push_str("<h2>Measurements (fitted - true, mm)</h2><table><tr><th>measurement</th><th>subjects</th><th>MAE</th><th>MAE 90 %</th><th>bias</th><th>worst</th><th>worst subject</th></tr>");
     let summary = table.summary();
     for m in &summary {
         let _ = write!(
             s,
-            "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.1}</td><td>{:+.1}</td><td>{:+.1}</td><td style=\"text-align:left\">{}</td></tr>",
+            "<tr><td style=\"text-align:left\">{}</td><td>{}</td><td>{:.1}</td><td>{}</td><td>{:+.1}</td><td>{:+.1}</td><td style=\"text-align:left\">{}</td></tr>",
             esc(&m.name),
             m.subjects,
             m.mean_abs_error_mm,
+            super::table::interval_cell(m.mae_interval_mm),
             m.mean_bias_mm,
             m.worst_error_mm,
             esc(&m.worst_subject)

@@ -21,6 +21,40 @@ pub struct MeasurementSummary {
     pub with_pm: usize,
     pub within_pm: usize,
     pub median_pm_mm: Option<f64>,
+    /// How far the MAE would move on another draw of as many subjects: the 5th and 95th
+    /// percentiles of the MAE over [`RESAMPLES`] draws of the set's own errors with
+    /// replacement (a percentile bootstrap, seeded: the same errors give the same
+    /// interval). None with fewer than [`MIN_RESAMPLED`] subjects.
+    pub mae_interval_mm: Option<(f64, f64)>,
+}
+
+/// Draws of the subjects for [`MeasurementSummary::mae_interval_mm`].
+pub const RESAMPLES: usize = 2000;
+/// Fewest subjects a set needs for an MAE interval.
+pub const MIN_RESAMPLED: usize = 5;
+/// Seed of the resampling (any fixed value: the interval is a function of the errors).
+const RESAMPLE_SEED: u64 = 0x5EED_B007;
+
+/// The 5th and 95th percentiles of the mean absolute value of `errors` over
+/// [`RESAMPLES`] draws of as many of them with replacement; None with fewer than
+/// [`MIN_RESAMPLED`].
+pub fn mae_interval(errors: &[f64]) -> Option<(f64, f64)> {
+    let n = errors.len();
+    if n < MIN_RESAMPLED {
+        return None;
+    }
+    let mut rng = crate::synth::rng::SplitMix64::new(RESAMPLE_SEED);
+    let mut maes: Vec<f64> = (0..RESAMPLES)
+        .map(|_| {
+            let sum: f64 = (0..n)
+                .map(|_| errors[(rng.next_u64() % n as u64) as usize].abs())
+                .sum();
+            sum / n as f64
+        })
+        .collect();
+    maes.sort_by(|a, b| a.total_cmp(b));
+    let at = |q: f64| maes[((q * (RESAMPLES - 1) as f64).round() as usize).min(RESAMPLES - 1)];
+    Some((at(0.05), at(0.95)))
 }
 
 /// The single tape-girth error of largest magnitude in a set of fits: which girth
@@ -127,6 +161,7 @@ impl EvalTable {
                     with_pm: pms.len(),
                     within_pm,
                     median_pm_mm: (!pms.is_empty()).then(|| pms[pms.len() / 2]),
+                    mae_interval_mm: mae_interval(&es.iter().map(|e| e.0).collect::<Vec<_>>()),
                 }
             })
             .collect()
@@ -324,14 +359,15 @@ impl EvalTable {
         if let Some(t) = self.turn_summary() {
             s.push_str(&format!("\n{}\n", t.describe()));
         }
-        s.push_str("\nper measurement        subjects   MAE mm  bias mm  worst mm  median ± mm  within ±  (worst subject)\n");
+        s.push_str("\nper measurement        subjects   MAE mm  MAE 90 %   bias mm  worst mm  median ± mm  within ±  (worst subject)\n");
         for m in self.summary() {
             let (pm, within) = match m.median_pm_mm {
                 Some(pm) => (format!("{pm:.1}"), format!("{}/{}", m.within_pm, m.with_pm)),
                 None => ("-".into(), "-".into()),
             };
+            let interval = interval_cell(m.mae_interval_mm);
             s.push_str(&format!(
-                "{:<22} {:>8} {:>8.1} {:>8.1} {:>9.1} {pm:>12} {within:>9}  ({})\n",
+                "{:<22} {:>8} {:>8.1} {interval:>10} {:>8.1} {:>9.1} {pm:>12} {within:>9}  ({})\n",
                 m.name,
                 m.subjects,
                 m.mean_abs_error_mm,
@@ -340,6 +376,9 @@ impl EvalTable {
                 m.worst_subject
             ));
         }
+        s.push_str(
+            "(MAE 90 %: where the MAE would lie on 90 % of other draws of as many subjects, from the set's own errors resampled)\n",
+        );
         if let Some(w) = self.worst_girth() {
             s.push_str(&w.describe());
             s.push('\n');
@@ -407,4 +446,9 @@ pub(super) fn short(name: &str) -> String {
 
 pub(super) fn clip(s: &str, n: usize) -> String {
     s.chars().take(n).collect()
+}
+
+/// `lo-hi` of an MAE interval, or `-`.
+pub fn interval_cell(i: Option<(f64, f64)>) -> String {
+    i.map_or("-".into(), |(lo, hi)| format!("{lo:.1}-{hi:.1}"))
 }

@@ -66,9 +66,9 @@ fn sets_side_by_side_shows_each_sets_mae_bias_and_worst() {
     );
     // Each chest row is given ±8: 4 mm is within it, -10 mm is not.
     let cover = t
-        .lines()
-        .filter(|l| l.starts_with("chest_girth"))
+        .split("within ± / median ±")
         .nth(1)
+        .and_then(|b| b.lines().find(|l| l.starts_with("chest_girth")))
         .expect("cover row");
     assert!(
         cover.contains("1/2 / 8.0") && cover.contains("0/1 / 8.0"),
@@ -209,4 +209,63 @@ fn turns_read_are_scored_against_the_truths() {
         "{text}"
     );
     assert_eq!(EvalTable::default().turn_summary(), None);
+}
+
+#[test]
+fn the_maes_interval_spans_what_another_draw_of_subjects_would_give() {
+    // Errors 0, 10, 20, ... 230 mm: MAE 115. Another draw of 24 from them moves the MAE
+    // by about its standard error, 69 / sqrt(24) = 14 mm: the 90 % interval is about
+    // 115 -/+ 1.645 x 14.
+    let errors: Vec<f64> = (0..24).map(|i| 10.0 * i as f64).collect();
+    let (lo, hi) = table::mae_interval(&errors).expect("24 subjects");
+    assert!(lo < 115.0 && 115.0 < hi, "{lo} {hi}");
+    assert!((hi - lo - 2.0 * 1.645 * 14.1).abs() < 6.0, "{lo} {hi}");
+    // Signs do not matter, order does not matter, and the same errors give the same
+    // interval.
+    let mut flipped: Vec<f64> = errors.iter().rev().map(|e| -e).collect();
+    flipped.rotate_left(5);
+    let (lo2, hi2) = table::mae_interval(&flipped).expect("24 subjects");
+    assert!(
+        (lo2 - lo).abs() < 3.0 && (hi2 - hi).abs() < 3.0,
+        "{lo2} {hi2}"
+    );
+    assert_eq!(table::mae_interval(&errors), Some((lo, hi)));
+    // All alike: no spread. Too few subjects: no interval.
+    assert_eq!(table::mae_interval(&[7.0; 12]), Some((7.0, 7.0)));
+    assert_eq!(table::mae_interval(&[1.0, 2.0, 3.0, 4.0]), None);
+    // Quadrupling the subjects halves the interval.
+    let many: Vec<f64> = (0..96).map(|i| 10.0 * (i % 24) as f64).collect();
+    let (lo4, hi4) = table::mae_interval(&many).expect("96 subjects");
+    let ratio = (hi4 - lo4) / (hi - lo);
+    assert!((ratio - 0.5).abs() < 0.12, "{ratio}");
+}
+
+#[test]
+fn the_tables_give_each_maes_interval() {
+    let rows: Vec<EvalRow> = (0..6)
+        .map(|i| {
+            row(
+                &format!("subject_{i:02}"),
+                &[("chest_girth", Some(2.0 * i as f64))],
+            )
+        })
+        .collect();
+    let t = EvalTable {
+        rows,
+        failures: Vec::new(),
+    };
+    let (lo, hi) = t.summary()[0].mae_interval_mm.expect("6 subjects");
+    assert!(lo < 5.0 && 5.0 < hi, "{lo} {hi}");
+    let cell = format!("{lo:.1}-{hi:.1}");
+    assert!(t.to_text().contains(&cell), "{}", t.to_text());
+    let side = sets_side_by_side(&[("ansur".into(), t)]);
+    let block = side
+        .split("MAE 90 % interval")
+        .nth(1)
+        .expect("the interval block");
+    let chest = block
+        .lines()
+        .find(|l| l.starts_with("chest_girth"))
+        .expect("chest row");
+    assert!(chest.contains(&cell), "{chest}");
 }
