@@ -83,6 +83,40 @@ pub fn parse_set(spec: &str) -> anyhow::Result<EvalSet> {
     })
 }
 
+/// Width of a set's column in [`sets_side_by_side`].
+const COL: usize = 24;
+
+/// One block of [`sets_side_by_side`]: a header of the set names under `title`, then per
+/// measurement of `names` that `keep` keeps a row of `cell` for each set (`-` where the set
+/// lacks the measurement or `cell` gives nothing).
+fn measurement_block(
+    s: &mut String,
+    title: &str,
+    sets: &[(String, EvalTable)],
+    names: &[&String],
+    keep: impl Fn(&str) -> bool,
+    summaries: &[Vec<MeasurementSummary>],
+    cell: impl Fn(&MeasurementSummary) -> Option<String>,
+) {
+    s.push_str(&format!("{:<20}", title));
+    for (n, _) in sets {
+        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
+    }
+    s.push('\n');
+    for name in names.iter().filter(|n| keep(n.as_str())) {
+        s.push_str(&format!("{:<20}", clip(name, 20)));
+        for sum in summaries {
+            let c = sum
+                .iter()
+                .find(|m| &m.name == *name)
+                .and_then(&cell)
+                .unwrap_or_else(|| "-".into());
+            s.push_str(&format!(" {c:>COL$}"));
+        }
+        s.push('\n');
+    }
+}
+
 /// The sets side by side: one row per measurement, per set `MAE / bias / worst` (mm), the
 /// MAE's 90 % interval over other draws of as many subjects (resampled), then how many
 /// subjects of each set were scored.
@@ -91,64 +125,46 @@ pub fn sets_side_by_side(sets: &[(String, EvalTable)]) -> String {
     let mut names: Vec<&String> = summaries.iter().flatten().map(|m| &m.name).collect();
     names.sort();
     names.dedup();
-    const COL: usize = 24;
-    let mut s = format!("{:<20}", "MAE / bias / worst mm");
-    for (n, _) in sets {
-        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
-    }
+    let mut s = String::new();
+    let every = |_: &str| true;
+    measurement_block(
+        &mut s,
+        "MAE / bias / worst mm",
+        sets,
+        &names,
+        every,
+        &summaries,
+        |m| {
+            Some(format!(
+                "{:.1} / {:+.1} / {:+.1}",
+                m.mean_abs_error_mm, m.mean_bias_mm, m.worst_error_mm
+            ))
+        },
+    );
     s.push('\n');
-    for name in &names {
-        s.push_str(&format!("{:<20}", clip(name, 20)));
-        for sum in &summaries {
-            let cell = sum
-                .iter()
-                .find(|m| &m.name == *name)
-                .map_or("-".into(), |m| {
-                    format!(
-                        "{:.1} / {:+.1} / {:+.1}",
-                        m.mean_abs_error_mm, m.mean_bias_mm, m.worst_error_mm
-                    )
-                });
-            s.push_str(&format!(" {cell:>COL$}"));
-        }
-        s.push('\n');
-    }
-    s.push_str(&format!("\n{:<20}", "MAE 90 % interval"));
-    for (n, _) in sets {
-        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
-    }
+    measurement_block(
+        &mut s,
+        "MAE 90 % interval",
+        sets,
+        &names,
+        every,
+        &summaries,
+        |m| Some(interval_cell(m.mae_interval_mm)),
+    );
     s.push('\n');
-    for name in &names {
-        s.push_str(&format!("{:<20}", clip(name, 20)));
-        for sum in &summaries {
-            let cell = sum
-                .iter()
-                .find(|m| &m.name == *name)
-                .map_or("-".into(), |m| interval_cell(m.mae_interval_mm));
-            s.push_str(&format!(" {cell:>COL$}"));
-        }
-        s.push('\n');
-    }
-    s.push_str(&format!("\n{:<20}", "within ± / median ±"));
-    for (n, _) in sets {
-        s.push_str(&format!(" {:>COL$}", clip(n, COL)));
-    }
-    s.push('\n');
-    for name in names.iter().filter(|n| n.as_str() != "stature") {
-        s.push_str(&format!("{:<20}", clip(name, 20)));
-        for sum in &summaries {
-            let cell = sum
-                .iter()
-                .find(|m| &m.name == *name)
-                .and_then(|m| {
-                    m.median_pm_mm
-                        .map(|pm| format!("{}/{} / {pm:.1}", m.within_pm, m.with_pm))
-                })
-                .unwrap_or_else(|| "-".into());
-            s.push_str(&format!(" {cell:>COL$}"));
-        }
-        s.push('\n');
-    }
+    let girths = |n: &str| n != "stature";
+    measurement_block(
+        &mut s,
+        "within ± / median ±",
+        sets,
+        &names,
+        girths,
+        &summaries,
+        |m| {
+            m.median_pm_mm
+                .map(|pm| format!("{}/{} / {pm:.1}", m.within_pm, m.with_pm))
+        },
+    );
     s.push_str(&format!("{:<20}", "subjects fitted"));
     for (_, t) in sets {
         let cell = format!("{} of {}", t.rows.len(), t.rows.len() + t.failures.len());
