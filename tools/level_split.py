@@ -14,7 +14,11 @@ avatar and of the true body, and prints per torso girth (chest, waist, hip):
 Then per set the MAE / bias / worst of both, and for the hip the truth's own plateau:
 the span of heights whose back lies within 1 mm of its furthest point between the crotch
 and waist levels, and the range of the truth's girths over it (the spec's hip level
-is the furthest point back: where the back is that flat, a millimetre decides it).
+is the furthest point back: where the back is that flat, a millimetre decides it), and the
+hip each subject would get over the levels it may be at, the avatar's girths weighted by
+`exp(-(z - z_back) / r)` as the station weights them (`station::uncertainty`,
+`hip_girth_over_levels_mm`), with the weights taken from the avatar's own back and from the
+truth's (as if the side view showed the person's back exactly), r 2, 3 and 5 mm.
 
 Inputs: the set (`synth-set` output) and a folder of `SUBJECT.m.json` files, each the
 avatar's `fitstation measure AVATAR --json`; the truth's is read from
@@ -28,6 +32,7 @@ Usage: python3 tools/level_split.py FITSTATION SET_DIR MEASURES_DIR
 """
 import glob
 import json
+import math
 import os
 import subprocess
 import sys
@@ -63,6 +68,22 @@ def plateau(t, tol_m=0.001):
     return 1000 * (max(hs) - min(hs)), max(gs) - min(gs)
 
 
+def hip_over_levels(avatar, weights_from, resolution_m):
+    """The avatar's torso girths between the crotch and waist levels of `weights_from`,
+    weighted by how near that body's back at each height is to its furthest point."""
+    lv = weights_from["levels_m"]
+    band = [p for p in weights_from["torso_profile"] if lv["crotch_m"] <= p["height_m"] <= lv["waist_m"]]
+    if not band:
+        return None
+    back = min(p["back_z_m"] for p in band)
+    sw = sg = 0.0
+    for p in band:
+        w = math.exp(-(p["back_z_m"] - back) / resolution_m)
+        sw += w
+        sg += w * girth_at(avatar["torso_profile"], p["height_m"])
+    return sg / sw
+
+
 def summary(v):
     return f"{sum(map(abs, v)) / len(v):5.1f} / {sum(v) / len(v):+5.1f} / {max(v, key=abs):+4.0f}"
 
@@ -73,6 +94,7 @@ def main():
     fitstation, set_dir, measures = sys.argv[1:]
     errs = {g: ([], []) for g, _ in LEVELS}
     spans = []
+    weighted = {}
     for mf in sorted(glob.glob(os.path.join(measures, "subject_*.m.json"))):
         subject = os.path.basename(mf)[: -len(".m.json")]
         with open(mf) as f:
@@ -93,6 +115,11 @@ def main():
         p = plateau(t)
         if p:
             spans.append(p)
+        for r in (0.002, 0.003, 0.005):
+            for name, body in (("avatar's back", a), ("truth's back", t)):
+                h = hip_over_levels(a, body, r)
+                if h is not None:
+                    weighted.setdefault((name, r), []).append(h - t["measurements_mm"]["hip_girth"])
         print(line)
     if not spans:
         return
@@ -103,6 +130,8 @@ def main():
     gs = sorted(g for _, g in spans)
     print(f"truth's hip plateau (back within 1 mm): height span median {hs[len(hs) // 2]:.0f} mm "
           f"(max {hs[-1]:.0f}), girth range over it median {gs[len(gs) // 2]:.0f} mm (max {gs[-1]:.0f})")
+    for (name, r), v in sorted(weighted.items()):
+        print(f"hip over the levels, weights from the {name:14s} r {1000 * r:.0f} mm: {summary(v)}")
 
 
 if __name__ == "__main__":
