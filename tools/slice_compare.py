@@ -110,17 +110,27 @@ def fullness(breadth, depth, hull):
     return hull / (np.pi * (3.0 * (a + c) - np.sqrt((3.0 * a + c) * (a + 3.0 * c))))
 
 
+def load_subject(set_dir, fits_dir, subject):
+    """(name, truth.json, (truth vertices, triangles), (avatar vertices, triangles)) of a
+    subject ("07" or "subject_07") of a synthetic set and its fits folder."""
+    name = subject if subject.startswith("subject_") else f"subject_{subject}"
+    truth_dir = os.path.join(set_dir, name + ".truth")
+    with open(os.path.join(truth_dir, "truth.json")) as f:
+        truth = json.load(f)
+    return (
+        name,
+        truth,
+        load_obj(os.path.join(truth_dir, "mesh.obj")),
+        load_obj(os.path.join(fits_dir, name, "avatar.obj")),
+    )
+
+
 def main():
     if len(sys.argv) < 4:
         sys.exit(__doc__)
     set_dir, fits_dir, subjects = sys.argv[1], sys.argv[2], sys.argv[3:]
     for s in subjects:
-        name = s if s.startswith("subject_") else f"subject_{s}"
-        truth_dir = os.path.join(set_dir, name + ".truth")
-        with open(os.path.join(truth_dir, "truth.json")) as f:
-            truth = json.load(f)
-        vt, ft = load_obj(os.path.join(truth_dir, "mesh.obj"))
-        va, fa = load_obj(os.path.join(fits_dir, name, "avatar.obj"))
+        name, truth, (vt, ft), (va, fa) = load_subject(set_dir, fits_dir, s)
         cxt, cxa = np.median(vt[:, 0]), np.median(va[:, 0])
         stature = truth["measurements_mm"]["stature"] / 1000
         lm = truth["landmarks"]

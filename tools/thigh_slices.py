@@ -25,7 +25,6 @@ FITS_DIR when none are named; numpy and scipy)
           target/release/fitstation replay $s --out out/fits/$n; done
         python3 tools/thigh_slices.py out/dev_ansur out/fits
 """
-import json
 import os
 import sys
 
@@ -33,8 +32,7 @@ import numpy as np
 from scipy.spatial import ConvexHull
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
-from measure_spec import read_obj  # noqa: E402
-from slice_compare import loops  # noqa: E402
+from slice_compare import load_subject, loops  # noqa: E402
 
 DEPTHS_CM = (1, 2, 3, 5, 8)
 MIN_WIDTH_M = 0.06
@@ -66,12 +64,7 @@ def main():
     )
     rows = {cm: [] for cm in DEPTHS_CM}
     for s in subjects:
-        name = s if s.startswith("subject_") else f"subject_{s}"
-        truth_dir = os.path.join(set_dir, name + ".truth")
-        with open(os.path.join(truth_dir, "truth.json")) as f:
-            truth = json.load(f)
-        vt, ft = read_obj(os.path.join(truth_dir, "mesh.obj"))
-        va, fa = read_obj(os.path.join(fits, name, "avatar.obj"))
+        name, truth, (vt, ft), (va, fa) = load_subject(set_dir, fits, s)
         crotch = truth["landmarks"]["crotch"][1]
         cxt, cxa = np.median(vt[:, 0]), np.median(va[:, 0])
         m = truth["measurements_mm"]
