@@ -3,15 +3,17 @@
 # targets of fuzz/ on the stable toolchain, writes the seed corpora from the repository's
 # real files, runs each target and prints, per target, executions, corpus size and crashes.
 #
-#   tools/fuzz.sh [--seconds N] [--parallel P] [--opt-level L] [--keep-going] [TARGET...]
+#   tools/fuzz.sh [--seconds N] [--parallel P] [--opt-level L] [--keep-going] [--no-seeds]
+#                 [TARGET...]
 #
-# --seconds N    run time per target (default 60); --parallel P: targets run at once
-#                (default 1); --opt-level L: the targets' optimisation level (default
-#                fuzz/Cargo.toml's, 3; CI's short runs take 1, a build 18 % shorter);
-#                --keep-going: libFuzzer's fork mode, which records a crash
-#                and goes on (long runs); --no-seeds: the corpus as it is (repeated runs). No TARGET: all of them. Exit status 1 if the
-#                build fails or any target crashed, hung (-timeout=10) or ran out of
-#                memory (-rss_limit_mb=2048).
+# --seconds N     run time per target (default 60)
+# --parallel P    targets run at once (default 1)
+# --opt-level L   the targets' optimisation level (default fuzz/Cargo.toml's, 3; CI's
+#                 short runs take 1, a build 18 % shorter)
+# --keep-going    libFuzzer's fork mode, which records a crash and goes on (long runs)
+# --no-seeds      the corpus as it is (repeated runs)
+# No TARGET: all of them. Exit status 1 if the build fails or any target crashed, hung
+# (-timeout=10) or ran out of memory (-rss_limit_mb=2048).
 # Corpora grow in fuzz/corpus/<target>/ (not committed); crashing inputs land in
 # fuzz/artifacts/<target>/; save them under tests/fuzz_cases/<target>/ with a test in
 # tests/fuzz_regressions.rs. Logs: fuzz/logs/<target>.log.
@@ -30,7 +32,7 @@ while [ $# -gt 0 ]; do
     --opt-level) opt_level=(--config "profile.release.opt-level=$2"); shift 2 ;;
     --keep-going) keep_going=1; shift ;;
     --no-seeds) seeds=0; shift ;;
-    -h|--help) sed -n 2,16p "$0"; exit 0 ;;
+    -h|--help) sed -n 2,19p "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
