@@ -4,7 +4,7 @@
 # real files, runs each target and prints, per target, executions, corpus size and crashes.
 #
 #   tools/fuzz.sh [--seconds N] [--parallel P] [--opt-level L] [--keep-going] [--no-seeds]
-#                 [TARGET...]
+#                 [--build-only] [TARGET...]
 #
 # --seconds N     run time per target (default 60)
 # --parallel P    targets run at once (default 1)
@@ -12,6 +12,8 @@
 #                 short runs take 1, a build 18 % shorter)
 # --keep-going    libFuzzer's fork mode, which records a crash and goes on (long runs)
 # --no-seeds      the corpus as it is (repeated runs)
+# --build-only    build the targets and stop (CI builds them beside the tests, then runs
+#                 them with the same --opt-level: the build is then already done)
 # No TARGET: all of them. Exit status 1 if the build fails or any target crashed, hung
 # (-timeout=10) or ran out of memory (-rss_limit_mb=2048).
 # Corpora grow in fuzz/corpus/<target>/ (not committed); crashing inputs land in
@@ -23,6 +25,7 @@ seconds=60
 parallel=1
 keep_going=0
 seeds=1
+build_only=0
 opt_level=()
 targets=()
 while [ $# -gt 0 ]; do
@@ -32,7 +35,8 @@ while [ $# -gt 0 ]; do
     --opt-level) opt_level=(--config "profile.release.opt-level=$2"); shift 2 ;;
     --keep-going) keep_going=1; shift ;;
     --no-seeds) seeds=0; shift ;;
-    -h|--help) sed -n 2,19p "$0"; exit 0 ;;
+    --build-only) build_only=1; shift ;;
+    -h|--help) sed -n 2,21p "$0"; exit 0 ;;
     *) targets+=("$1"); shift ;;
   esac
 done
@@ -50,6 +54,7 @@ export RUSTFLAGS="--cfg fuzzing -Cpasses=sancov-module -Cllvm-args=-sanitizer-co
 echo "== building the fuzz targets (fuzz/target)"
 cargo build --release "${opt_level[@]}" --manifest-path fuzz/Cargo.toml --target "$host" --bins
 bin=fuzz/target/$host/release
+[ "$build_only" = 0 ] || exit 0
 
 if [ "$seeds" = 1 ]; then
 echo "== seed corpora from the repository's files (fuzz/corpus, tests/fuzz_seeds.rs)"

@@ -1,7 +1,8 @@
 //! A learned person model beside the backdrop model (issue 20): MediaPipe's selfie
 //! segmentation and BlazePose GHUM (full) landmark networks, imported to ONNX by
 //! `tools/import_mediapipe.py` (files under `models/`, see `models/PROVENANCE.md`) and run
-//! in pure Rust with `tract-onnx`.
+//! in pure Rust with `tract-onnx` (the default feature `person-model`; a build without it,
+//! such as the fuzz targets', fails to load a network with a message saying so).
 //!
 //! This module is the inference stage only: frame crop -> network -> person probability and
 //! body keypoints in frame pixels. Fusing them with the backdrop segmentation is not done
@@ -27,11 +28,17 @@
 //! [`PersonModel::infer`] reuses the input tensor and the output buffers. tract itself
 //! allocates its intermediate tensors on each run.
 
+mod networks;
+#[cfg(not(feature = "person-model"))]
+#[path = "no_engine.rs"]
+mod engine;
 mod prep;
-mod tract_backend;
+#[cfg(feature = "person-model")]
+#[path = "tract_backend.rs"]
+mod engine;
 
+pub use networks::{PoseLandmarker, SelfieSegmenter};
 pub use prep::resample_roi;
-pub use tract_backend::{PoseLandmarker, SelfieSegmenter};
 
 use std::path::{Path, PathBuf};
 
