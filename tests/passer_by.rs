@@ -145,3 +145,52 @@ fn a_person_walking_behind_neither_stops_the_fit_nor_is_measured() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The masks written by replaying `rec` with the frame sampled away from the person or
+/// tested in full, as (file name, bytes) per view, and the report.
+fn replay_masks(rec: &Path, sample: bool, masks: &Path) -> (Vec<(String, Vec<u8>)>, serde_json::Value) {
+    let mut opts = fitstation::station::StationOptions {
+        masks_out: Some(masks.to_path_buf()),
+        ..Default::default()
+    };
+    opts.silhouette.segment.sample_outside_person = sample;
+    let report = common::replay_report_with(rec, opts);
+    let mut files = Vec::new();
+    for view in View::BOTH {
+        let mut names: Vec<_> = std::fs::read_dir(masks.join(view.name()))
+            .expect("masks written")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        for n in names {
+            let bytes = std::fs::read(masks.join(view.name()).join(&n)).expect("mask");
+            files.push((format!("{}/{n}", view.name()), bytes));
+        }
+    }
+    (files, report)
+}
+
+#[test]
+fn sampling_away_from_the_person_gives_the_full_tests_masks() {
+    // The segmentation tests every coarse cell only about the person's last box and
+    // samples the rest, testing in full where a sample changed. On a recording whose
+    // passer-by crosses the sampled part of both views, every mask (the passer-by's
+    // frames too) and every measurement must be those of the full test.
+    let dir = tmp("sampled");
+    let rec = dir.join("walked");
+    render_recording(&config(1, true, 12), &rec).expect("render");
+    let (sampled, a) = replay_masks(&rec, true, &dir.join("masks_sampled"));
+    let (full, b) = replay_masks(&rec, false, &dir.join("masks_full"));
+    assert!(sampled.len() >= 2 * 12, "{} masks written", sampled.len());
+    assert_eq!(
+        sampled.iter().map(|f| &f.0).collect::<Vec<_>>(),
+        full.iter().map(|f| &f.0).collect::<Vec<_>>()
+    );
+    for ((name, s), (_, f)) in sampled.iter().zip(&full) {
+        assert!(s == f, "mask {name} differs between the sampled and the full test");
+    }
+    assert_eq!(a["frames"], b["frames"]);
+    assert_eq!(a["measurements_mm"], b["measurements_mm"]);
+    assert!(a["measurements_mm"]["chest_girth"].as_f64().is_some(), "{}", a["frames"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -343,6 +343,34 @@ pub struct PersonPrior {
     /// The box's cells deep inside the person ([`MASK_ON`]): at least [`CORE_LEVEL`]
     /// throughout the square of [`CORE_STEPS`] cells around them.
     core: Vec<u8>,
+    /// Box of the cells at [`SUPPORT_LEVEL`] or more, `(x0, y0, x1, y1)` (empty when
+    /// none is).
+    support: (usize, usize, usize, usize),
+}
+
+/// The least probability level any use of the prior asks for, with margin (p 0.1: the
+/// fusion's least is [`FusionOptions::min_prob`], 0.3, and a piece's 0.5): cells below it
+/// are the backdrop's alone.
+pub const SUPPORT_LEVEL: u8 = 26;
+
+/// The box of the cells of `prob` (a `bw`-wide box at `(x0, y0)`) at `level` or more.
+fn support_of(prob: &[u8], bw: usize, (x0, y0): (usize, usize), level: u8) -> (usize, usize, usize, usize) {
+    let (mut sx0, mut sy0, mut sx1, mut sy1) = (usize::MAX, usize::MAX, 0, 0);
+    for (y, row) in prob.chunks_exact(bw.max(1)).enumerate() {
+        let (Some(a), Some(b)) = (
+            row.iter().position(|&p| p >= level),
+            row.iter().rposition(|&p| p >= level),
+        ) else {
+            continue;
+        };
+        (sx0, sx1) = (sx0.min(a), sx1.max(b + 1));
+        sy0 = sy0.min(y);
+        sy1 = y + 1;
+    }
+    if sx0 == usize::MAX {
+        return (x0, y0, x0, y0);
+    }
+    (x0 + sx0, y0 + sy0, x0 + sx1, y0 + sy1)
 }
 
 impl PersonPrior {
@@ -376,6 +404,7 @@ impl PersonPrior {
             x1,
             y1,
             core: core_of(&out, x1 - x0, y1 - y0),
+            support: support_of(&out, x1 - x0, (x0, y0), SUPPORT_LEVEL),
             prob: out,
         }
     }
@@ -402,6 +431,12 @@ impl PersonPrior {
     /// The box of cells holding the prior, `(x0, y0, x1, y1)` (max exclusive).
     pub fn cell_box(&self) -> (usize, usize, usize, usize) {
         (self.x0, self.y0, self.x1, self.y1)
+    }
+
+    /// The box of the cells at [`SUPPORT_LEVEL`] or more, `(x0, y0, x1, y1)` (max
+    /// exclusive; empty when none is): where the prior can change a label.
+    pub fn support_box(&self) -> (usize, usize, usize, usize) {
+        self.support
     }
 }
 

@@ -203,6 +203,10 @@ pub struct SegmentOptions {
     pub bridge_columns: bool,
     /// Keep holes open that look like the backdrop (see `segment`); else fill every hole.
     pub open_holes: bool,
+    /// With a person in the last frame, test every cell only about the person (and the
+    /// learned prior) and sample the rest of the frame, testing in full where a sample
+    /// changed (see `classify_coarse`); else test every cell of every frame.
+    pub sample_outside_person: bool,
 }
 
 impl Default for SegmentOptions {
@@ -218,6 +222,7 @@ impl Default for SegmentOptions {
             min_person_fraction: 0.01,
             bridge_columns: true,
             open_holes: true,
+            sample_outside_person: true,
         }
     }
 }
@@ -293,6 +298,9 @@ pub struct SegmentStats {
     pub gain: f32,
     /// Full-resolution pixels re-tested along the border.
     pub band_px: u32,
+    /// Cells of the coarse grid given the colour test in full (all of them, unless the
+    /// frame was sampled away from the person: see `SegmentOptions::sample_outside_person`).
+    pub tested_cells: u64,
     /// Full-resolution pixels (coarse cells times four) made person by the learned
     /// person prior ([`fusion`]); 0 without a prior.
     pub fused_px: u64,
@@ -419,6 +427,12 @@ pub struct BackgroundModel {
     standing_cells: Option<PixelBox>,
     fusion: fusion::FusionRule,
     fuse_scratch: fusion::FuseScratch,
+    /// Per block of the sampled classification: tested in full or sampled (see
+    /// `classify::classify_around_person`), the blocks queued for a full test, and the
+    /// luma of each block's sample.
+    block_state: Vec<u8>,
+    block_queue: Vec<u32>,
+    block_luma: Vec<u8>,
 }
 
 /// Model of one pixel in eight bytes (the band re-test is bound by memory latency):
@@ -555,6 +569,9 @@ impl BackgroundModel {
             prior: None,
             fusion: fusion::FusionRule::default(),
             fuse_scratch: fusion::FuseScratch::default(),
+            block_state: Vec::new(),
+            block_queue: Vec::new(),
+            block_luma: Vec::new(),
         }
     }
 
@@ -801,7 +818,7 @@ impl BackgroundModel {
         let g = self.estimate_gain(raw);
         self.gain = g;
         stats.gain = g;
-        stats.exposure = self.classify_coarse(raw, g);
+        (stats.exposure, stats.tested_cells) = self.classify_coarse(raw, g);
         stats.phase_ms.classify = clock.lap();
         stats.fused_px = self.fuse_person_prior(raw);
         stats.phase_ms.fuse = clock.lap();

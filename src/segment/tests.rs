@@ -472,3 +472,61 @@ fn only_a_clipped_channel_beside_unclipped_ones_is_left_out() {
     assert_eq!(unclipped_weights(255, 255, 255), [1, 1, 1]);
     assert_eq!(unclipped_weights(120, 130, 253), [1, 1, 1]);
 }
+
+/// A tall person at `x0..x0 + 40` (none without `x0`) and, with `walker`, a second figure
+/// at the frame's far right, on a noisy two-tone backdrop.
+fn sampled_scene(x0: Option<u32>, walker: bool, seed: u32) -> RgbImage {
+    painted(400, 300, seed, |x, y, s| {
+        let n = (s % 7) as i32 - 3;
+        let base = 140 + ((x / 16 + y / 16) % 2) as i32 * 25;
+        let mut c = [base + n, base + 4 + n, base - 8 + n];
+        if x0.is_some_and(|x0| (x0..x0 + 40).contains(&x)) && (40..260).contains(&y) {
+            c = [60 + n, 90 + n, 170 + n];
+        }
+        if walker && (320..370).contains(&x) && (90..200).contains(&y) {
+            c = [210 + n, 100 + n, 60 + n];
+        }
+        c.map(|v| v.clamp(0, 255) as u8)
+    })
+}
+
+#[test]
+fn sampling_away_from_the_person_labels_what_the_full_test_does() {
+    let full_opts = SegmentOptions {
+        sample_outside_person: false,
+        ..Default::default()
+    };
+    let mut sampled = BackgroundModel::new(400, 300, SegmentOptions::default());
+    let mut full = BackgroundModel::new(400, 300, full_opts);
+    for k in 0..4 {
+        let empty = sampled_scene(None, false, k);
+        sampled.learn(&empty).unwrap();
+        full.learn(&empty).unwrap();
+    }
+    let (mut ms, mut mf) = (Mask::new(1, 1), Mask::new(1, 1));
+    let cells = 200 * 150;
+    // The first frame with a person is tested in full; then the frame is sampled away
+    // from the last box, while a second figure walks in at the far right and the person
+    // steps further than the margin about the last box (16 cells, 32 px).
+    let frames = [(60, false), (60, false), (60, true), (130, true), (130, false)];
+    for (k, &(x0, walker)) in frames.iter().enumerate() {
+        let frame = sampled_scene(Some(x0), walker, 100 + k as u32);
+        let a = sampled.segment(&frame, &mut ms).unwrap();
+        let b = full.segment(&frame, &mut mf).unwrap();
+        assert!(ms.data == mf.data, "frame {k}: the masks differ");
+        assert_eq!(a.large_components, b.large_components, "frame {k}");
+        assert_eq!(a.second_px, b.second_px, "frame {k}");
+        assert_eq!(a.person_box, b.person_box, "frame {k}");
+        assert_eq!(b.tested_cells, cells);
+        if k == 0 {
+            assert_eq!(a.tested_cells, cells, "no last box: every cell");
+        } else {
+            assert!(a.tested_cells < cells / 2, "frame {k}: {} cells", a.tested_cells);
+        }
+        // The exposure is estimated from the samples away from the person.
+        assert!((a.exposure.mean_luma - b.exposure.mean_luma).abs() < 2.0, "frame {k}");
+        if walker {
+            assert_eq!(a.large_components, 2, "frame {k}: the walker is seen");
+        }
+    }
+}
