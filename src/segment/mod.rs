@@ -41,13 +41,17 @@
 //! tolerances then only have to cover what is left about it).
 //!
 //! Per frame: the test runs on every second pixel of every second row (a 2x coarse
-//! grid), the coarse mask is cleaned by a 3x3 majority filter, its largest 8-connected
-//! component is kept with its holes filled (except holes that look like the backdrop
-//! seen through a gap: mostly unchanged, or shadowed inside the shadow zone), and the
-//! full-resolution mask is that
-//! component upsampled, with every pixel within one coarse cell of its border re-tested
-//! at full resolution (then a 3x3 majority among those pixels). The model keeps
-//! adapting slowly (a running mean) on a rotating band of rows, away from the person.
+//! grid); with a person in the last frame, only about the person's last box (and the
+//! learned prior's support), the rest of the frame sampled one cell in 16 and tested in
+//! full where a sample changed and wherever a changed region leads from there
+//! (`classify::classify_around_person`; the labels are the full test's but for patches
+//! too thin to hold a sample). The coarse mask is cleaned by a 3x3 majority filter, its
+//! largest 8-connected component is kept with its holes filled (except holes that look
+//! like the backdrop seen through a gap: mostly unchanged, or shadowed inside the shadow
+//! zone), and the full-resolution mask is that component upsampled, with every pixel
+//! within one coarse cell of its border re-tested at full resolution (then a 3x3
+//! majority among those pixels). The model keeps adapting slowly (a running mean) on a
+//! rotating band of rows, away from the person.
 //!
 //! Still images (the paper's case) go through [`key_still`]: against an empty-scene image
 //! if there is one, else against a backdrop colour keyed from the image border.
