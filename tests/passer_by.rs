@@ -148,7 +148,11 @@ fn a_person_walking_behind_neither_stops_the_fit_nor_is_measured() {
 
 /// The masks written by replaying `rec` with the frame sampled away from the person or
 /// tested in full, as (file name, bytes) per view, and the report.
-fn replay_masks(rec: &Path, sample: bool, masks: &Path) -> (Vec<(String, Vec<u8>)>, serde_json::Value) {
+fn replay_masks(
+    rec: &Path,
+    sample: bool,
+    masks: &Path,
+) -> (Vec<(String, Vec<u8>)>, serde_json::Value) {
     let mut opts = fitstation::station::StationOptions {
         masks_out: Some(masks.to_path_buf()),
         ..Default::default()
@@ -187,10 +191,17 @@ fn sampling_away_from_the_person_gives_the_full_tests_masks() {
         full.iter().map(|f| &f.0).collect::<Vec<_>>()
     );
     for ((name, s), (_, f)) in sampled.iter().zip(&full) {
-        assert!(s == f, "mask {name} differs between the sampled and the full test");
+        assert!(
+            s == f,
+            "mask {name} differs between the sampled and the full test"
+        );
     }
     assert_eq!(a["frames"], b["frames"]);
     assert_eq!(a["measurements_mm"], b["measurements_mm"]);
-    assert!(a["measurements_mm"]["chest_girth"].as_f64().is_some(), "{}", a["frames"]);
+    assert!(
+        a["measurements_mm"]["chest_girth"].as_f64().is_some(),
+        "{}",
+        a["frames"]
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -28,14 +28,14 @@
 //! [`PersonModel::infer`] reuses the input tensor and the output buffers. tract itself
 //! allocates its intermediate tensors on each run.
 
-mod networks;
 #[cfg(not(feature = "person-model"))]
 #[path = "no_engine.rs"]
 mod engine;
-mod prep;
 #[cfg(feature = "person-model")]
 #[path = "tract_backend.rs"]
 mod engine;
+mod networks;
+mod prep;
 
 pub use networks::{PoseLandmarker, SelfieSegmenter};
 pub use prep::resample_roi;

@@ -219,7 +219,11 @@ impl BackgroundModel {
         }
         // The blocks only sampled count their sample for each of their cells.
         let tested = counts.n;
-        for (b, _) in blocks.iter().enumerate().filter(|(_, &s)| s == BLOCK_SAMPLED) {
+        for (b, _) in blocks
+            .iter()
+            .enumerate()
+            .filter(|(_, &s)| s == BLOCK_SAMPLED)
+        {
             let (bx, by) = (b % bw, b / bw);
             let cells = ((bx + 1) * BLOCK).min(cw) - bx * BLOCK;
             let cells = (cells * (((by + 1) * BLOCK).min(ch) - by * BLOCK)) as u64;
@@ -239,8 +243,11 @@ impl BackgroundModel {
     fn block_changed(&self, bx: usize, by: usize) -> bool {
         let (_, _, cw, ch) = self.grid();
         let (cx0, cx1) = (bx * BLOCK, ((bx + 1) * BLOCK).min(cw));
-        (by * BLOCK..((by + 1) * BLOCK).min(ch))
-            .any(|cy| self.coarse[cy * cw + cx0..cy * cw + cx1].iter().any(|&v| v != 0))
+        (by * BLOCK..((by + 1) * BLOCK).min(ch)).any(|cy| {
+            self.coarse[cy * cw + cx0..cy * cw + cx1]
+                .iter()
+                .any(|&v| v != 0)
+        })
     }
 
     /// Labels cells `cx0..cx1` of coarse row `cy` (see [`CellTest`]); returns the exposure
@@ -339,7 +346,14 @@ pub(super) const BLOCK_SAMPLED: u8 = 0;
 pub(super) const BLOCK_DENSE: u8 = 1;
 
 /// Queues the neighbours of block `(bx, by)` not yet tested in full.
-fn push_neighbours(queue: &mut Vec<u32>, blocks: &[u8], bx: usize, by: usize, bw: usize, bh: usize) {
+fn push_neighbours(
+    queue: &mut Vec<u32>,
+    blocks: &[u8],
+    bx: usize,
+    by: usize,
+    bw: usize,
+    bh: usize,
+) {
     for ny in by.saturating_sub(1)..(by + 2).min(bh) {
         for nx in bx.saturating_sub(1)..(bx + 2).min(bw) {
             let n = ny * bw + nx;

@@ -354,7 +354,12 @@ pub struct PersonPrior {
 pub const SUPPORT_LEVEL: u8 = 26;
 
 /// The box of the cells of `prob` (a `bw`-wide box at `(x0, y0)`) at `level` or more.
-fn support_of(prob: &[u8], bw: usize, (x0, y0): (usize, usize), level: u8) -> (usize, usize, usize, usize) {
+fn support_of(
+    prob: &[u8],
+    bw: usize,
+    (x0, y0): (usize, usize),
+    level: u8,
+) -> (usize, usize, usize, usize) {
     let (mut sx0, mut sy0, mut sx1, mut sy1) = (usize::MAX, usize::MAX, 0, 0);
     for (y, row) in prob.chunks_exact(bw.max(1)).enumerate() {
         let (Some(a), Some(b)) = (

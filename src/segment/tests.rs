@@ -508,7 +508,13 @@ fn sampling_away_from_the_person_labels_what_the_full_test_does() {
     // The first frame with a person is tested in full; then the frame is sampled away
     // from the last box, while a second figure walks in at the far right and the person
     // steps further than the margin about the last box (16 cells, 32 px).
-    let frames = [(60, false), (60, false), (60, true), (130, true), (130, false)];
+    let frames = [
+        (60, false),
+        (60, false),
+        (60, true),
+        (130, true),
+        (130, false),
+    ];
     for (k, &(x0, walker)) in frames.iter().enumerate() {
         let frame = sampled_scene(Some(x0), walker, 100 + k as u32);
         let a = sampled.segment(&frame, &mut ms).unwrap();
@@ -521,10 +527,17 @@ fn sampling_away_from_the_person_labels_what_the_full_test_does() {
         if k == 0 {
             assert_eq!(a.tested_cells, cells, "no last box: every cell");
         } else {
-            assert!(a.tested_cells < cells / 2, "frame {k}: {} cells", a.tested_cells);
+            assert!(
+                a.tested_cells < cells / 2,
+                "frame {k}: {} cells",
+                a.tested_cells
+            );
         }
         // The exposure is estimated from the samples away from the person.
-        assert!((a.exposure.mean_luma - b.exposure.mean_luma).abs() < 2.0, "frame {k}");
+        assert!(
+            (a.exposure.mean_luma - b.exposure.mean_luma).abs() < 2.0,
+            "frame {k}"
+        );
         if walker {
             assert_eq!(a.large_components, 2, "frame {k}: the walker is seen");
         }
