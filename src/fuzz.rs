@@ -2,7 +2,7 @@
 //! through a parser of outside data exactly as the station reads that file, then uses
 //! what was accepted the way the station would. `Err` means the input was refused with
 //! a message (the expected outcome for most fuzz inputs); a panic, a hang or a runaway
-//! allocation is the bug the fuzzer looks for. `tests/fuzz_regressions.rs` runs every
+//! allocation is the bug the fuzzer looks for. `tests/suite/fuzz_regressions.rs` runs every
 //! saved crashing input (`tests/fuzz_cases/<target>/`) through the same function.
 //!
 //! Formats that live in files (an MP4, a recording folder) are written to a fresh

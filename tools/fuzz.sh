@@ -18,7 +18,7 @@
 # (-timeout=10) or ran out of memory (-rss_limit_mb=2048).
 # Corpora grow in fuzz/corpus/<target>/ (not committed); crashing inputs land in
 # fuzz/artifacts/<target>/; save them under tests/fuzz_cases/<target>/ with a test in
-# tests/fuzz_regressions.rs. Logs: fuzz/logs/<target>.log.
+# tests/suite/fuzz_regressions.rs. Logs: fuzz/logs/<target>.log.
 set -euo pipefail
 cd "$(dirname "$0")/.."
 seconds=60

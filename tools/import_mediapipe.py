@@ -7,7 +7,7 @@ Usage:
         [--reference tests/data/person_crop.ppm --reference-out tests/data/person_reference.json]
 
 With --reference it also writes TFLite's outputs on that committed network input, which
-`tests/person_models.rs` compares with the Rust (tract-onnx) inference.
+`tests/suite/person_models.rs` compares with the Rust (tract-onnx) inference.
 
 Needs PyPI `tflite` (the flatbuffer reader), `onnx` and `numpy`; checks the result
 against the TFLite runtime (`ai-edge-litert` or `tflite-runtime`) when one is installed,

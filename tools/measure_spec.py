@@ -9,7 +9,7 @@ numpy, loops are the connected components of the cut segments (segments that sha
 crossed mesh edge), girths are convex hull perimeters in (x, z). The grids follow the
 same anchoring choices the spec leaves open as the station's (torso bands: crotch +
 k 2 mm, then the armpit; thigh band: from its top down; a band's ends count as grid
-points), so the two should agree to well under 1 mm. tests/measure_python.rs runs it
+points), so the two should agree to well under 1 mm. tests/suite/measure_python.rs runs it
 on the committed template.
 """
 import json

@@ -26,7 +26,7 @@
 //! Last, the fused cells are opened by a 3x3 square ([`OPEN_STEPS`]): lost clothing is a
 //! broad region, while the optics' halo of a bright hand on a dark backdrop, or a gap
 //! the network blurred shut, survives only as a sliver (this took 41 mm off a waist in
-//! `tests/station_replay.rs`, hands before the belly).
+//! `tests/suite/station_replay.rs`, hands before the belly).
 //!
 //! A garment whose colour stays inside the noise radius (grey leggings on a dark
 //! backdrop, their shaded edges a few levels off it) gives every pixel an `r` of 0.3-0.6,

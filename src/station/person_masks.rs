@@ -40,7 +40,7 @@ pub const EVERY_FRAMES: usize = 8;
 pub const RETRY_FRAMES: usize = 3;
 /// The crop: the pieces' box, squared and widened by this, for the pose network (a margin
 /// round the body, as its own person detector would give) and for the selfie network
-/// (which does best on a tight crop, `tests/person_models.rs`).
+/// (which does best on a tight crop, `tests/suite/person_models.rs`).
 const POSE_CROP_SCALE: f32 = 1.25;
 const SELFIE_CROP_SCALE: f32 = 1.1;
 /// A component of at least this many coarse cells is a piece of the person.

@@ -17,13 +17,18 @@ pub fn have(tool: &str) -> bool {
 /// 1600x900 screen) and waits for it, at most `timeout`: a run still going then is ended
 /// with its Xvfb (the window runs in its own process group) and is an error. The output,
 /// whatever the exit status.
-#[allow(dead_code)] // not every window test uses it
+///
+/// One window at a time: the window tests share one test binary, and two `xvfb-run -a`
+/// started together can pick the same display number.
 pub fn run_in_xvfb(
     bin: &str,
     args: &[std::ffi::OsString],
     timeout: std::time::Duration,
 ) -> Result<std::process::Output, String> {
     use std::os::unix::process::CommandExt;
+    static ONE_WINDOW: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    // A window test that panicked while holding the lock leaves nothing to repair.
+    let _window = ONE_WINDOW.lock().unwrap_or_else(|e| e.into_inner());
     let mut child = Command::new("xvfb-run")
         .args(["-a", "-s", "-screen 0 1600x900x24", bin])
         .args(args)

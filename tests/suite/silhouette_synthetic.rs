@@ -2,7 +2,7 @@
 //! against the rendered ground truth (noise, flicker, shadow at the feet) and landmark
 //! heights against the phantom's exact landmarks.
 
-mod silhouette_common;
+use crate::silhouette_common;
 
 use fitstation::camera::View;
 use fitstation::landmarks::phantom::{Phantom, PhantomParams, SceneParams};

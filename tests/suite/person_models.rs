@@ -254,7 +254,7 @@ fn pose_landmarks_fall_on_the_demo_subject() {
 }
 
 /// Single-thread inference time of both models on the demo frame (printed, not asserted):
-/// `cargo test --release --test person_models -- --ignored --nocapture`.
+/// `cargo test --release --test suite person_models:: -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn person_model_timings() {
@@ -287,7 +287,7 @@ fn person_model_timings() {
 
 /// Mask IoU of both models on every subject frame of the demo (front and side) for a few
 /// crops (printed, not asserted):
-/// `cargo test --release --test person_models person_model_survey -- --ignored --nocapture`.
+/// `cargo test --release --test suite person_models::person_model_survey -- --ignored --nocapture`.
 #[test]
 #[ignore]
 fn person_model_survey() {
@@ -345,7 +345,7 @@ fn person_model_survey() {
 /// The network input of the TFLite cross-check (`tests/data/person_crop.ppm`): demo frame
 /// 17 (front), the pose crop of its true silhouette, resampled to 256x256 by
 /// `resample_roi` and rounded to 8 bits. Regenerate explicitly with
-/// `PERSON_REGENERATE=1 cargo test --release --test person_models write_reference_crop -- --ignored`,
+/// `PERSON_REGENERATE=1 cargo test --release --test suite person_models::write_reference_crop -- --ignored`,
 /// then re-run `tools/import_mediapipe.py` with `--reference` to refresh its TFLite outputs.
 #[test]
 #[ignore]

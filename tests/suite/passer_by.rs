@@ -10,7 +10,7 @@ use std::path::Path;
 const FIRST_SEED: u64 = 20500;
 const SET_COUNT: usize = 4;
 
-mod common;
+use crate::common;
 
 fn tmp(name: &str) -> common::TempDir {
     common::tmp_dir("passer", name)

@@ -11,7 +11,7 @@
 //! station now reports the avatar's girths over the levels that may be the person's
 //! furthest back, each by its chance (`station::uncertainty::hip_girth_over_levels_mm`).
 
-mod common;
+use crate::common;
 
 use fitstation::recording::FrameFormat;
 use fitstation::synth::{load_truth, render_recording, truth_dir};

@@ -5,7 +5,7 @@
 //! segmentation beside `cv2.createBackgroundSubtractorMOG2` on the same frames (printed,
 //! not asserted). Without cv2 the checks print SKIPPED and pass, except under `CI`.
 
-mod silhouette_common;
+use crate::silhouette_common;
 
 use fitstation::contour::trace_outer;
 use fitstation::imgproc::Mask;

@@ -1,5 +1,5 @@
 //! Survey of the fit on true silhouettes over several seeds (ignored by default; run with
-//! `FIT_SEEDS=11,12,7,3,21 cargo test --release --test fit_survey -- --ignored --nocapture`).
+//! `FIT_SEEDS=11,12,7,3,21 cargo test --release --test suite fit_survey:: -- --ignored --nocapture`).
 //! Prints each girth's error, and the torso section's width and depth (avatar vs truth) at
 //! the truth's hip, waist and chest levels, to tell shape errors from level errors.
 //! Writes the avatar and truth meshes to `/tmp/fit_survey/<seed>/` for inspection.

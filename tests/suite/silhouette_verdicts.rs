@@ -1,7 +1,7 @@
 //! Every frame verdict is exercised by a frame that should trigger it and by frames that
 //! should not (the good A-pose frame, and near misses).
 
-mod silhouette_common;
+use crate::silhouette_common;
 
 use fitstation::camera::View;
 use fitstation::imgproc::Mask;

@@ -1,7 +1,7 @@
 //! The paper's case, one still image per view: keying a plain backdrop, keying against
 //! an empty-scene image, and the `fitstation landmarks` command on both.
 
-mod silhouette_common;
+use crate::silhouette_common;
 
 use fitstation::landmarks::phantom::SceneParams;
 use fitstation::segment::key_still;

@@ -7,7 +7,7 @@ use fitstation::synth::{load_truth, render_recording, truth_dir, SynthConfig};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-mod common;
+use crate::common;
 
 fn tmp(name: &str) -> common::TempDir {
     common::tmp_dir("station", name)

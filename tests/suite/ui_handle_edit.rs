@@ -16,7 +16,7 @@ use std::ffi::OsString;
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-mod xvfb_common;
+use crate::xvfb_common;
 use xvfb_common::{have, run_in_xvfb};
 
 /// Longest the window may take (software rendering on a loaded 2-core machine).

@@ -10,7 +10,7 @@ use std::ffi::OsString;
 use std::path::PathBuf;
 use std::time::Duration;
 
-mod xvfb_common;
+use crate::xvfb_common;
 use xvfb_common::{have, run_in_xvfb};
 
 /// Screen frames before the screenshot.

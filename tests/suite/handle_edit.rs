@@ -4,7 +4,7 @@
 //! exactly and be marked in the report; `fitstation edit` does the same on a fit's
 //! output folder, and undoing every edit gives back the fit's files byte for byte.
 
-mod common;
+use crate::common;
 
 use common::{tmp_dir, GIRTHS};
 use fitstation::cli::{run_offline, RecordingSource};

@@ -5,7 +5,7 @@
 //! exact orthographic front silhouette (rasterised at 0.5 mm).
 //! Skipped (with a SKIPPED line) when the mesh is not on this machine.
 
-mod silhouette_common;
+use crate::silhouette_common;
 
 use fitstation::camera::Camera;
 use fitstation::imgproc::Mask;

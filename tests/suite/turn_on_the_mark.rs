@@ -24,7 +24,7 @@ const TURNS_DEG: [f64; 2] = [4.0, -4.0];
 /// "A few millimetres" (issue 19, item 4), per girth.
 const MAX_CHANGE_MM: f64 = 6.0;
 
-mod common;
+use crate::common;
 
 fn tmp(name: &str) -> common::TempDir {
     common::tmp_dir("turn", name)
@@ -60,7 +60,7 @@ fn girths(rec: &Path) -> serde_json::Map<String, serde_json::Value> {
 /// After cb867af (the toes' scans walk in half-pixel steps, the turns read on the
 /// development sets no worse) another candidate is chosen: +4 degrees chest +2.4, waist
 /// -0.2, hip -6.0, thighs -11.6 / +4.3; -4 degrees chest -1.8, waist +2.7, hip -3.0,
-/// thighs -5.0 / -6.1. Run with `cargo test --release --test turn_on_the_mark --
+/// thighs -5.0 / -6.1. Run with `cargo test --release --test suite turn_on_the_mark:: --
 /// --ignored`.
 #[test]
 #[ignore = "issue 19 item 4 not met yet: a +4 degree turn moves the left thigh by -11.6 mm, -4 the right thigh by -6.1"]

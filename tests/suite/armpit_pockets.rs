@@ -9,7 +9,7 @@
 //! and the chest under it took both arms in (1588 mm against the truth's 1106). Replayed
 //! through its first five subject frames, the station's chest is now the trunk's.
 
-mod common;
+use crate::common;
 
 use fitstation::recording::FrameFormat;
 use fitstation::station::StationOptions;

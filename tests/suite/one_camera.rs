@@ -24,7 +24,7 @@ fn demo() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("recordings/demo")
 }
 
-mod common;
+use crate::common;
 
 fn tmp(name: &str) -> common::TempDir {
     common::tmp_dir("onecam", name)
