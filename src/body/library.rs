@@ -228,9 +228,13 @@ impl LibraryData {
         for i in 0..nv {
             let mut p = [0i32; 3];
             for k in 0..3 {
-                let v = prev[k] + r.zigzag()?;
-                p[k] = i32::try_from(v)
-                    .map_err(|_| r.err(&format!("vertex {i}: coordinate out of range")))?;
+                // The step may be any i64: a sum past i64's range is out of range too
+                // (not an overflow panic in a build with overflow checks).
+                let v = prev[k]
+                    .checked_add(r.zigzag()?)
+                    .and_then(|v| i32::try_from(v).ok().map(|_| v))
+                    .ok_or_else(|| r.err(&format!("vertex {i}: coordinate out of range")))?;
+                p[k] = v as i32;
                 prev[k] = v;
             }
             base.push(p);
