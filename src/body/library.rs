@@ -230,12 +230,11 @@ impl LibraryData {
             for k in 0..3 {
                 // The step may be any i64: a sum past i64's range is out of range too
                 // (not an overflow panic in a build with overflow checks).
-                let v = prev[k]
+                p[k] = prev[k]
                     .checked_add(r.zigzag()?)
-                    .and_then(|v| i32::try_from(v).ok().map(|_| v))
+                    .and_then(|v| i32::try_from(v).ok())
                     .ok_or_else(|| r.err(&format!("vertex {i}: coordinate out of range")))?;
-                p[k] = v as i32;
-                prev[k] = v;
+                prev[k] = i64::from(p[k]);
             }
             base.push(p);
         }
